@@ -1,0 +1,68 @@
+"""The error hierarchy of robofleet.
+
+Every error the library raises on purpose derives from :class:`RobofleetError`, and
+each subclass also derives from the builtin a Python user would expect
+(``ScenarioError`` is a ``ValueError``), so ``except ValueError`` keeps working.
+
+A message states *where* (file and field path), *what was expected* and *what was
+received*, on one line; the CLI prints it as is and exits with status 2.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+
+class RobofleetError(Exception):
+    """Base class of every error raised on purpose by robofleet."""
+
+
+class ScenarioError(RobofleetError, ValueError):
+    """A scenario, sweep or data file is invalid.
+
+    Parameters
+    ----------
+    field:
+        Dotted path of the offending field (``"robots.radius"``), or ``""``.
+    expected:
+        What a valid value looks like.
+    received:
+        The value that was given (shown with ``repr``, shortened).
+    source:
+        The file the value came from, or ``None`` for in-memory input.
+    """
+
+    def __init__(self, field: str, expected: str, received: Any = None, *, source: str | None = None):
+        self.field = field
+        self.expected = expected
+        self.received = received
+        self.source = source
+        super().__init__(self._format())
+
+    def _format(self) -> str:
+        where = str(self.source) if self.source else "<mapping>"
+        if self.field:
+            where += f": {self.field}"
+        return f"{where}: expected {self.expected}, received {short_repr(self.received)}"
+
+    def with_source(self, source: str) -> "ScenarioError":
+        """Return a copy of this error that names ``source`` as its file."""
+        return ScenarioError(self.field, self.expected, self.received, source=source)
+
+
+class ConfigError(RobofleetError, ValueError):
+    """A parameter passed in code is invalid (same message form as ScenarioError)."""
+
+
+class InfeasibleError(RobofleetError, RuntimeError):
+    """An instance has no solution the algorithm can find (e.g. an unreachable goal)."""
+
+
+class TraceError(RobofleetError, ValueError):
+    """A trace file is missing, corrupt or of an unknown version."""
+
+
+def short_repr(value: Any, limit: int = 80) -> str:
+    """``repr(value)`` cut to ``limit`` characters, on one line."""
+    text = repr(value).replace("\n", " ")
+    return text if len(text) <= limit else text[: limit - 3] + "..."

@@ -1,0 +1,139 @@
+"""``Trace``: what a run recorded, saved as ``trace.npz`` + ``trace.json``.
+
+Arrays are per-step, shaped ``(n_steps, n_robots, dim)`` (positions include the initial
+state, so ``n_steps = steps + 1``). Events are small dicts (``{"step": 12, "kind":
+"deadlock", "robot": 3}``). ``metadata`` holds what is needed to interpret the arrays
+(family, dt, radius, goals, workspace...), ``results`` the scalar outcomes the simulation
+decided (e.g. ``deadlock: true``); :meth:`Trace.summary` merges the standard motion
+metrics with ``results``.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from . import metrics
+from .errors import TraceError
+from .workspace import Region, Workspace
+
+TRACE_VERSION = 1
+
+
+@dataclass
+class Trace:
+    """A recorded run.
+
+    Attributes
+    ----------
+    family: the scenario family (``"avoidance"``, ``"coordination"``, ...).
+    arrays: name → array; ``positions`` (true positions) is expected for motion families.
+    events: list of event dicts, each with at least ``step`` and ``kind``.
+    metadata: JSON-serialisable description of the run (``dt``, ``radius``, ``seed``...).
+    results: scalar outcomes decided by the simulation, merged into :meth:`summary`.
+    workspace: the workspace the run took place in, if any.
+    """
+
+    family: str
+    arrays: dict[str, np.ndarray] = field(default_factory=dict)
+    events: list[dict] = field(default_factory=list)
+    metadata: dict[str, Any] = field(default_factory=dict)
+    results: dict[str, Any] = field(default_factory=dict)
+    workspace: Workspace | None = None
+
+    @property
+    def positions(self) -> np.ndarray:
+        return self.arrays["positions"]
+
+    def summary(self) -> dict:
+        """The dict written to ``summary.json``."""
+        out: dict[str, Any] = {}
+        md = self.metadata
+        if "positions" in self.arrays and "goals" in md:
+            out.update(
+                metrics.motion_summary(
+                    self.positions,
+                    np.asarray(md["goals"], dtype=float),
+                    float(md["radius"]),
+                    float(md["dt"]),
+                    float(md.get("goal_tolerance", 0.0)),
+                    self.workspace,
+                    self.arrays.get("step_seconds"),
+                )
+            )
+        out.update(self.results)
+        return to_plain(out)
+
+    def save(self, directory: str | Path) -> Path:
+        """Write ``trace.npz`` and ``trace.json`` into ``directory`` (created if needed)."""
+        d = Path(directory)
+        d.mkdir(parents=True, exist_ok=True)
+        np.savez_compressed(d / "trace.npz", **self.arrays)
+        doc = {
+            "version": TRACE_VERSION,
+            "family": self.family,
+            "events": self.events,
+            "metadata": self.metadata,
+            "results": self.results,
+            "workspace": _workspace_to_json(self.workspace),
+        }
+        (d / "trace.json").write_text(dumps_json(doc))
+        return d
+
+    @classmethod
+    def load(cls, directory: str | Path) -> "Trace":
+        """Read a trace written by :meth:`save`."""
+        d = Path(directory)
+        try:
+            doc = json.loads((d / "trace.json").read_text())
+            with np.load(d / "trace.npz") as npz:
+                arrays = {k: npz[k] for k in npz.files}
+        except (OSError, ValueError) as exc:
+            raise TraceError(f"{d}: expected a trace directory with trace.json and trace.npz, received an unreadable one ({exc})") from None
+        if doc.get("version") != TRACE_VERSION:
+            raise TraceError(f"{d / 'trace.json'}: version: expected {TRACE_VERSION}, received {doc.get('version')!r}")
+        return cls(doc["family"], arrays, doc["events"], doc["metadata"], doc["results"], _workspace_from_json(doc.get("workspace")))
+
+
+def _workspace_to_json(ws: Workspace | None):
+    if ws is None:
+        return None
+    return {
+        "bounds": ws.bounds.tolist(),
+        "obstacles": [o.tolist() for o in ws.obstacles],
+        "regions": [{"name": r.name, "vertices": r.vertices.tolist(), "attributes": dict(r.attributes)} for r in ws.regions],
+    }
+
+
+def _workspace_from_json(doc) -> Workspace | None:
+    if doc is None:
+        return None
+    regions = tuple(Region(r["name"], np.asarray(r["vertices"], float), r["attributes"]) for r in doc["regions"])
+    return Workspace(np.asarray(doc["bounds"], float), tuple(np.asarray(o, float) for o in doc["obstacles"]), regions)
+
+
+def to_plain(obj, *, json_safe: bool = False):
+    """Convert numpy scalars/arrays (recursively) to plain Python.
+
+    With ``json_safe`` non-finite floats become ``None`` so the output is strict JSON.
+    """
+    if isinstance(obj, dict):
+        return {str(k): to_plain(v, json_safe=json_safe) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [to_plain(v, json_safe=json_safe) for v in obj]
+    if isinstance(obj, np.ndarray):
+        return to_plain(obj.tolist(), json_safe=json_safe)
+    if isinstance(obj, np.generic):
+        obj = obj.item()
+    if json_safe and isinstance(obj, float) and not np.isfinite(obj):
+        return None
+    return obj
+
+
+def dumps_json(obj) -> str:
+    """Strict JSON text of ``obj`` (numpy converted, NaN/inf as ``null``)."""
+    return json.dumps(to_plain(obj, json_safe=True), indent=1, allow_nan=False)
