@@ -1,0 +1,30 @@
+"""A progress bar for long loops (rich), silent when disabled or not on a terminal."""
+
+from __future__ import annotations
+
+from contextlib import contextmanager
+from typing import Iterator
+
+from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
+
+
+def progress_bar(total: int | None, description: str, enabled: bool = True) -> Progress:
+    """A rich ``Progress`` with bar, count, elapsed time and ETA (use as a context manager)."""
+    return Progress(
+        TextColumn("[bold]{task.description}"),
+        BarColumn(),
+        MofNCompleteColumn(),
+        TimeElapsedColumn(),
+        TextColumn("ETA"),
+        TimeRemainingColumn(),
+        disable=not enabled,
+        transient=False,
+    )
+
+
+@contextmanager
+def tracked(total: int | None, description: str, enabled: bool = True) -> Iterator["callable"]:
+    """Context manager yielding ``advance(n=1)`` that moves a progress bar forward."""
+    with progress_bar(total, description, enabled) as bar:
+        task = bar.add_task(description, total=total)
+        yield lambda n=1: bar.advance(task, n)
