@@ -1,0 +1,192 @@
+"""Where tasks run: in this process, in local worker processes, or on a Dask cluster.
+
+Every executor is a generator of ``(task, outcome)`` pairs yielded *as tasks complete*
+(not in submission order), so the caller can store each result at once. An outcome is
+``("ok", rows)`` or ``("error", message)``: an exception raised by the task function is
+caught where it ran and turned into a one-line message, so one failing task never stops
+the others. Only a bounded window of tasks is submitted ahead of the results
+(:data:`WINDOW_PER_WORKER` per worker), so memory stays flat on large sweeps and an
+interrupted sweep has little work in flight.
+
+Determinism does not depend on the executor: a task's result depends only on the task
+(its ``seed`` included), never on which worker ran it or when.
+"""
+
+from __future__ import annotations
+
+import enum
+import logging
+import os
+from collections import deque
+from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
+from typing import Any, Callable, Iterator, Mapping
+
+from ..core.errors import ConfigError, RobofleetError
+
+Outcome = tuple[str, Any]
+TaskFn = Callable[[dict], "dict | list[dict]"]
+WINDOW_PER_WORKER = 4
+
+
+class Executor(str, enum.Enum):
+    """The executors :func:`robofleet.experiments.run_tasks` accepts."""
+
+    serial = "serial"
+    process = "process"
+    dask = "dask"
+
+
+def as_executor(name: str | Executor) -> Executor:
+    """Normalise an executor name, listing the valid ones on error."""
+    try:
+        return Executor(name)
+    except ValueError:
+        raise ConfigError(f"executor: expected one of {[e.value for e in Executor]}, received {name!r}") from None
+
+
+def one_line(exc: BaseException) -> str:
+    """``"TypeName: first line of the message"``."""
+    text = str(exc).strip().splitlines()
+    return f"{type(exc).__name__}: {text[0]}" if text else type(exc).__name__
+
+
+def call_task(fn: TaskFn, task: dict) -> Outcome:
+    """Run ``fn(task)`` and check its result; never raises an ``Exception``.
+
+    Returns ``("ok", rows)`` with ``rows`` a list of dicts, or ``("error", message)``.
+    """
+    try:
+        result = fn(dict(task))
+        rows = [result] if isinstance(result, Mapping) else result
+        if not isinstance(rows, list) or not all(isinstance(r, Mapping) for r in rows):
+            raise TypeError(f"the task function must return a dict or a list of dicts, received {type(result).__name__}")
+        if any("error" in r for r in rows):
+            raise ValueError("the task function returned the reserved column 'error' (raise an exception instead)")
+        return "ok", [dict(r) for r in rows]
+    except Exception as exc:  # recorded as a failure row; the sweep goes on
+        return "error", one_line(exc)
+
+
+def default_workers() -> int:
+    """Worker count when none is given: the CPUs this process may use."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:  # not on Linux
+        return max(1, os.cpu_count() or 1)
+
+
+def check_workers(workers: int | None) -> int:
+    if workers is None:
+        return default_workers()
+    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
+        raise ConfigError(f"workers: expected a positive integer or None, received {workers!r}")
+    return workers
+
+
+def execute(fn: TaskFn, tasks: list[dict], executor: str | Executor = "process", scheduler: str | None = None, workers: int | None = None) -> Iterator[tuple[dict, Outcome]]:
+    """Run ``fn`` on every task with the chosen executor, yielding results as they complete."""
+    kind = as_executor(executor)
+    if scheduler is not None and kind is not Executor.dask:
+        raise ConfigError(f"scheduler: expected None unless executor is 'dask', received {scheduler!r} with executor {kind.value!r}")
+    if kind is Executor.serial:
+        return run_serial(fn, tasks)
+    if kind is Executor.process:
+        return run_processes(fn, tasks, check_workers(workers))
+    return run_dask(fn, tasks, scheduler, None if workers is None else check_workers(workers))
+
+
+def run_serial(fn: TaskFn, tasks: list[dict]) -> Iterator[tuple[dict, Outcome]]:
+    """Tasks one after the other in this process (debugging, tiny sweeps)."""
+    for task in tasks:
+        yield task, call_task(fn, task)
+
+
+def run_processes(fn: TaskFn, tasks: list[dict], workers: int) -> Iterator[tuple[dict, Outcome]]:
+    """Tasks on a local :class:`~concurrent.futures.ProcessPoolExecutor`.
+
+    ``fn`` must be a module-level function (workers receive it by reference). A worker
+    that dies (e.g. killed by the OS) turns its task, and those the broken pool can no
+    longer run, into failure rows; they are retried on the next run.
+    """
+    pending = deque(tasks)
+    window = workers * WINDOW_PER_WORKER
+    pool = ProcessPoolExecutor(max_workers=workers)
+    in_flight: dict[Future, dict] = {}
+    try:
+        while pending or in_flight:
+            while pending and len(in_flight) < window:
+                task = pending.popleft()
+                in_flight[pool.submit(call_task, fn, task)] = task
+            done, _ = wait(in_flight, return_when=FIRST_COMPLETED)
+            for future in done:
+                task = in_flight.pop(future)
+                exc = future.exception()
+                yield task, (("error", one_line(exc)) if exc is not None else future.result())
+    finally:
+        pool.shutdown(wait=True, cancel_futures=True)
+
+
+def import_distributed():
+    """The ``distributed`` package, or a clear error naming the optional extra."""
+    try:
+        import distributed
+    except ImportError:
+        raise RobofleetError("executor 'dask' needs the optional dependency dask[distributed]: pip install 'robofleet[dask]'") from None
+    return distributed
+
+
+def dask_client(scheduler: str | None, workers: int | None):
+    """A ``distributed.Client`` on ``scheduler``, or on a new ``LocalCluster``.
+
+    Returns ``(client, cluster)``; ``cluster`` is ``None`` for an external scheduler.
+    A ``LocalCluster`` has ``workers`` single-threaded worker processes.
+    """
+    distributed = import_distributed()
+    if scheduler is None:
+        cluster = distributed.LocalCluster(
+            n_workers=workers or default_workers(), threads_per_worker=1, processes=True,
+            dashboard_address=None, silence_logs=logging.ERROR,
+        )
+        return distributed.Client(cluster), cluster
+    try:
+        return distributed.Client(scheduler, timeout="10s"), None
+    except (OSError, TimeoutError, ValueError) as exc:
+        raise RobofleetError(f"scheduler: cannot connect to the Dask scheduler at {scheduler!r} ({one_line(exc)})") from None
+
+
+def run_dask(fn: TaskFn, tasks: list[dict], scheduler: str | None, workers: int | None) -> Iterator[tuple[dict, Outcome]]:
+    """Tasks on a Dask distributed cluster; results come back here and are stored here.
+
+    Workers of an external cluster need robofleet (and the module defining ``fn``)
+    installed; they never touch the result store, so they need no shared file system.
+    """
+    distributed = import_distributed()
+    client, cluster = dask_client(scheduler, workers)
+    try:
+        n_workers = max(1, len(client.scheduler_info().get("workers", {})) or (workers or default_workers()))
+        window = n_workers * WINDOW_PER_WORKER
+        pending = deque(tasks)
+        in_flight: dict[Any, dict] = {}
+        completed = distributed.as_completed()
+
+        def submit_more() -> None:
+            while pending and len(in_flight) < window:
+                task = pending.popleft()
+                future = client.submit(call_task, fn, task, pure=False)
+                in_flight[future.key] = task
+                completed.add(future)
+
+        submit_more()
+        for future in completed:
+            task = in_flight.pop(future.key)
+            if future.status == "finished":
+                outcome = future.result()
+            else:
+                outcome = ("error", one_line(future.exception()))
+            future.release()
+            yield task, outcome
+            submit_more()
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()

@@ -1,0 +1,266 @@
+"""Sweeps: one scenario × a parameter grid × seeds, run through :func:`run_tasks`.
+
+A sweep file (YAML) or mapping has the keys
+
+``scenario``
+    A scenario file path (relative to the sweep file) or an inline scenario mapping.
+``grid``
+    ``{dotted.path: [values]}``; the sweep runs the cartesian product, each combination
+    applied to the scenario with ``load_scenario(..., overrides=...)``. May be empty.
+``seeds``
+    A count ``n`` (seeds ``spawn_seeds(root_seed, n)``) or an explicit list of seeds.
+``root_seed``
+    Default 0.
+``out``
+    Result store directory, relative to the working directory; default
+    ``results/<sweep file stem>``.
+``metrics``
+    Optional list of ``trace.summary()`` keys to keep (default: all).
+
+Every combination's scenario is validated before anything runs, so a grid value that
+makes the scenario invalid is reported at once. Each row of the result is the run's
+``trace.summary()`` plus ``run_id``, ``seed`` and one column per grid path (named by the
+dotted path). ``run_id`` is a stable hash of (scenario, parameters, seed): editing the
+scenario or the grid gives new ids, while re-running the same sweep skips what finished.
+"""
+
+from __future__ import annotations
+
+import functools
+import hashlib
+import itertools
+import json
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Callable, Mapping
+
+import numpy as np
+import pandas as pd
+from pydantic import field_validator
+
+from ..core.errors import ScenarioError
+from ..core.rng import spawn_seeds
+from ..core.trace import to_plain
+from ..scenarios import SpecModel, load_scenario, read_mapping, simulate, validate_model
+from .executors import Executor
+from .store import ERROR_COLUMN, ResultStore
+from .tasks import run_tasks
+
+RESERVED_COLUMNS = ("run_id", "seed", ERROR_COLUMN)
+
+
+class SweepSpec(SpecModel):
+    """The validated content of a sweep file (see the module docstring)."""
+
+    scenario: Any
+    grid: Any = {}
+    seeds: Any
+    root_seed: Any = 0
+    out: str | None = None
+    metrics: Any = None
+
+    @field_validator("scenario", mode="before")
+    @classmethod
+    def _scenario(cls, value):
+        if isinstance(value, str) and value.strip():
+            return value
+        if isinstance(value, Mapping):
+            return dict(value)
+        raise ScenarioError("", "a scenario file path or an inline scenario mapping", value)
+
+    @field_validator("grid", mode="before")
+    @classmethod
+    def _grid(cls, value):
+        if value is None:
+            return {}
+        if not isinstance(value, Mapping):
+            raise ScenarioError("", "a mapping {dotted.path: [values]}", value)
+        for key, values in value.items():
+            if not isinstance(key, str) or not key or any(not part for part in key.split(".")):
+                raise ScenarioError("", "dotted field paths such as robots.radius as keys", key)
+            if key in RESERVED_COLUMNS:
+                raise ScenarioError(key, f"a scenario field path (not one of the reserved columns {list(RESERVED_COLUMNS)})", key)
+            if not isinstance(values, list) or not values:
+                raise ScenarioError(key, "a non-empty list of values", values)
+        return dict(value)
+
+    @field_validator("seeds", mode="before")
+    @classmethod
+    def _seeds(cls, value):
+        if is_int(value):
+            if value <= 0:
+                raise ScenarioError("", "a positive number of seeds or a non-empty list of seeds", value)
+            return int(value)
+        if isinstance(value, list) and value:
+            if not all(is_int(s) and s >= 0 for s in value):
+                raise ScenarioError("", "a list of non-negative integer seeds", value)
+            if len(set(value)) != len(value):
+                raise ScenarioError("", "distinct seeds", value)
+            return [int(s) for s in value]
+        raise ScenarioError("", "a positive number of seeds or a non-empty list of seeds", value)
+
+    @field_validator("root_seed", mode="before")
+    @classmethod
+    def _root_seed(cls, value):
+        if not is_int(value) or value < 0:
+            raise ScenarioError("", "a non-negative integer", value)
+        return int(value)
+
+    @field_validator("metrics", mode="before")
+    @classmethod
+    def _metrics(cls, value):
+        if value is None:
+            return None
+        if not isinstance(value, list) or not value or not all(isinstance(m, str) and m for m in value):
+            raise ScenarioError("", "a non-empty list of summary keys", value)
+        if len(set(value)) != len(value):
+            raise ScenarioError("", "distinct summary keys", value)
+        return list(value)
+
+
+def is_int(value) -> bool:
+    return isinstance(value, (int, np.integer)) and not isinstance(value, (bool, np.bool_))
+
+
+@dataclass(frozen=True)
+class SweepPlan:
+    """A validated sweep, expanded into tasks.
+
+    Attributes
+    ----------
+    source: the sweep file (``None`` for a mapping).
+    scenario: the scenario mapping every task starts from (shipped to workers).
+    grid_keys: the grid's dotted paths, in file order (also the parameter column names).
+    combinations: one ``{path: value}`` dict per grid point, in product order.
+    seeds: the seeds every combination runs with.
+    tasks: ``combinations × seeds`` task dicts (``run_id``, ``seed``, parameters).
+    fn: the picklable task function (simulate one task, return its summary).
+    out: the result store directory.
+    """
+
+    source: str | None
+    scenario: dict
+    grid_keys: tuple[str, ...]
+    combinations: tuple[dict, ...]
+    seeds: tuple[int, ...]
+    tasks: tuple[dict, ...]
+    fn: Callable[[dict], dict]
+    out: Path
+
+
+def simulate_task(task: dict, *, scenario: dict, grid_keys: tuple[str, ...], metrics: tuple[str, ...] | None) -> dict:
+    """Run one sweep task: the scenario with the task's grid values, at the task's seed."""
+    spec = load_scenario(scenario, overrides={key: task[key] for key in grid_keys})
+    summary = simulate(spec, seed=task["seed"], progress=False).summary()
+    if metrics is None:
+        return summary
+    missing = [m for m in metrics if m not in summary]
+    if missing:
+        raise KeyError(f"metrics {missing} are not summary keys; available: {sorted(summary)}")
+    return {m: summary[m] for m in metrics}
+
+
+def stable_run_id(scenario: Mapping, parameters: Mapping, seed: int) -> str:
+    """A hash of (scenario, parameters, seed), the same in every process and session."""
+    text = json.dumps({"scenario": to_plain(scenario), "parameters": to_plain(parameters), "seed": int(seed)}, sort_keys=True, default=str)
+    return hashlib.blake2b(text.encode(), digest_size=10).hexdigest()
+
+
+def plan_sweep(sweep_file_or_mapping: str | Path | Mapping[str, Any], out: str | Path | None = None) -> SweepPlan:
+    """Read and validate a sweep, check every grid combination's scenario, build the tasks.
+
+    Raises
+    ------
+    ScenarioError
+        One line naming the sweep file and field: unknown keys, wrong types, an empty
+        value list, a non-positive seed count, or a grid combination whose scenario is
+        invalid (with the scenario's own field, expectation and value).
+    """
+    data, source = read_mapping(sweep_file_or_mapping)
+    spec: SweepSpec = validate_model(SweepSpec, data, source)
+    base_dir = Path(source).parent if source else Path.cwd()
+    scenario_ref = str(base_dir / spec.scenario) if isinstance(spec.scenario, str) else spec.scenario
+    grid_keys = tuple(spec.grid)
+    combinations = tuple(dict(zip(grid_keys, values)) for values in itertools.product(*spec.grid.values()))
+    for combination in combinations:
+        check_combination(scenario_ref, combination, source)
+    scenario = read_mapping(scenario_ref)[0]
+    seeds = tuple(spawn_seeds(spec.root_seed, spec.seeds) if isinstance(spec.seeds, int) else spec.seeds)
+    tasks = tuple(
+        {"run_id": stable_run_id(scenario, combination, seed), "seed": seed, **combination}
+        for combination in combinations
+        for seed in seeds
+    )
+    fn = functools.partial(simulate_task, scenario=scenario, grid_keys=grid_keys, metrics=None if spec.metrics is None else tuple(spec.metrics))
+    stem = Path(source).stem if source else "sweep"
+    out_dir = Path(out) if out is not None else Path(spec.out) if spec.out else Path("results") / stem
+    return SweepPlan(source, scenario, grid_keys, combinations, seeds, tasks, fn, out_dir)
+
+
+def check_combination(scenario_ref: str | dict, combination: dict, source: str | None) -> None:
+    """Validate the scenario with one grid combination; re-raise naming the sweep file."""
+    try:
+        load_scenario(scenario_ref, overrides=combination)
+    except ScenarioError as exc:
+        where = "scenario" if not combination else "grid " + ", ".join(f"{k}={v!r}" for k, v in combination.items())
+        inner = f"{exc.source or 'inline scenario'}" + (f": {exc.field}" if exc.field else "")
+        raise ScenarioError(f"{where} → {inner}", exc.expected, exc.received, source=source) from None
+
+
+def run_sweep(
+    sweep_file_or_mapping: str | Path | Mapping[str, Any],
+    executor: str | Executor = "process",
+    scheduler: str | None = None,
+    progress: bool = True,
+    *,
+    workers: int | None = None,
+    out: str | Path | None = None,
+) -> pd.DataFrame:
+    """Run a sweep (scenario × grid × seeds), resuming from its result store.
+
+    Parameters
+    ----------
+    sweep_file_or_mapping:
+        A sweep YAML file or mapping (see the module docstring).
+    executor, scheduler, workers, progress:
+        As for :func:`run_tasks`.
+    out:
+        Result store directory, overriding the sweep's ``out``.
+
+    Returns
+    -------
+    pandas.DataFrame
+        The rows of this sweep's tasks (finished now or by an earlier run), in task
+        order; one column per grid path, ``run_id``, ``seed``, the summary keys and
+        ``error``. ``frame.attrs`` holds ``store`` (the directory), ``grid`` (the grid
+        paths) and ``other_rows`` (rows in the store from other sweeps).
+    """
+    plan = plan_sweep(sweep_file_or_mapping, out)
+    every = run_tasks(plan.fn, plan.tasks, ResultStore(plan.out), executor=executor, scheduler=scheduler, workers=workers, progress=progress)
+    order = {task["run_id"]: index for index, task in enumerate(plan.tasks)}
+    mine = every[every["run_id"].isin(order)]
+    frame = mine.sort_values("run_id", key=lambda ids: ids.map(order), kind="stable").reset_index(drop=True)
+    frame.attrs.update(store=str(plan.out), grid=list(plan.grid_keys), other_rows=int(len(every) - len(mine)))
+    return frame
+
+
+def summarize_sweep(frame: pd.DataFrame, grid_keys: list[str] | tuple[str, ...] | None = None) -> pd.DataFrame:
+    """Means of the numeric and boolean result columns per grid combination.
+
+    Adds ``runs`` (tasks per combination) and ``failed`` (tasks that raised); means are
+    over the rows without error. ``grid_keys`` defaults to ``frame.attrs["grid"]``.
+    """
+    keys = list(frame.attrs.get("grid", []) if grid_keys is None else grid_keys)
+    ok = frame[frame[ERROR_COLUMN].isna()] if ERROR_COLUMN in frame else frame
+    skip = set(keys) | set(RESERVED_COLUMNS)
+    values = [c for c in ok.columns if c not in skip and (pd.api.types.is_numeric_dtype(ok[c]) or pd.api.types.is_bool_dtype(ok[c]))]
+    numeric = ok[keys + values].copy()
+    for column in values:
+        numeric[column] = numeric[column].astype(float)
+    counts = frame.assign(failed=frame[ERROR_COLUMN].notna() if ERROR_COLUMN in frame else False)
+    if keys:
+        means = numeric.groupby(keys, dropna=False, sort=False)[values].mean()
+        tally = counts.groupby(keys, dropna=False, sort=False).agg(runs=("run_id", "nunique"), failed=("failed", "sum"))
+        return tally.join(means).reset_index()
+    means = numeric[values].mean().to_frame().T
+    return pd.concat([pd.DataFrame({"runs": [frame["run_id"].nunique()], "failed": [int(counts["failed"].sum())]}), means], axis=1)

@@ -1,0 +1,84 @@
+"""``run_tasks``: run a task function over many tasks into a resumable result store."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Iterable, Mapping
+
+import pandas as pd
+
+from ..core.progress import tracked
+from .executors import Executor, TaskFn, as_executor, execute
+from .store import ResultStore, check_tasks
+
+
+def run_tasks(
+    fn: TaskFn,
+    tasks: Iterable[Mapping],
+    store: str | Path | ResultStore,
+    *,
+    executor: str | Executor = "process",
+    scheduler: str | None = None,
+    workers: int | None = None,
+    progress: bool = True,
+) -> pd.DataFrame:
+    """Run ``fn`` on every task not yet in ``store``, storing each result as it completes.
+
+    Parameters
+    ----------
+    fn:
+        A module-level function ``fn(task) -> dict | list[dict]`` of scalar columns (a
+        list when one task yields several rows). It must be importable by name in worker
+        processes. An exception it raises becomes a failure row (see below).
+    tasks:
+        Dicts, each with a unique ``run_id`` (str) and a ``seed`` (int ≥ 0), plus scalar
+        parameters. The key ``error`` is reserved.
+    store:
+        Directory of the Parquet dataset (or a :class:`ResultStore`). Each finished task
+        is written at once, atomically, as its own file, with the task's fields merged
+        into its rows; tasks whose ``run_id`` already finished are skipped, so a killed
+        sweep resumes where it stopped and loses only the tasks that were running.
+    executor:
+        ``"serial"``, ``"process"`` (default: local worker processes) or ``"dask"``.
+    scheduler:
+        With ``"dask"``: a scheduler address (``"tcp://host:8786"``), or ``None`` to
+        start a ``LocalCluster`` for this call.
+    workers:
+        Number of local worker processes (``process``, or the ``LocalCluster`` of
+        ``dask``); default: the CPUs available to this process.
+    progress:
+        Show a progress bar with ETA.
+
+    Returns
+    -------
+    pandas.DataFrame
+        Every row in the store, earlier runs included, ordered by ``run_id``. A task
+        that raised has one row holding its fields and ``error`` (``"TypeName: message"``);
+        ``error`` is ``None`` elsewhere. Failed tasks are retried on the next call.
+
+    Raises
+    ------
+    ConfigError
+        On malformed tasks (missing/duplicate ``run_id``, bad ``seed``) or arguments.
+    """
+    checked = check_tasks(tasks)
+    kind = as_executor(executor)
+    store = store if isinstance(store, ResultStore) else ResultStore(store)
+    store.remove_temporaries()
+    finished = store.finished_ids()
+    pending = [t for t in checked if t["run_id"] not in finished]
+    if pending:
+        skipped = len(checked) - len(pending)
+        label = f"{len(pending)} runs" + (f" ({skipped} already done)" if skipped else "")
+        results = execute(fn, pending, kind, scheduler, workers)
+        try:
+            with tracked(len(pending), label, enabled=progress) as advance:
+                for task, (status, payload) in results:
+                    if status == "ok":
+                        store.write_rows(task, payload)
+                    else:
+                        store.write_error(task, payload)
+                    advance()
+        finally:
+            results.close()
+    return store.read()
