@@ -6,6 +6,7 @@ a Dask ``LocalCluster`` included, can import them by name.
 
 from __future__ import annotations
 
+import os
 import time
 import uuid
 from pathlib import Path
@@ -18,12 +19,14 @@ def noisy_sum(task: dict) -> dict | list[dict]:
 
     Task keys (all optional besides ``seed``): ``n`` (draws, default 4), ``rows`` (return
     that many rows, one per ``part``), ``fail`` (raise ``ValueError`` when true),
-    ``sleep`` (seconds to wait first), ``marker_dir`` (write one empty file per call
+    ``sleep`` (seconds to wait first), ``crash`` (end the process at once), ``marker_dir`` (write one empty file per call
     there, so tests count calls across processes). The result depends only on the task.
     """
     start = time.perf_counter()
     if task.get("marker_dir"):
         Path(task["marker_dir"], f"{task['run_id']}-{uuid.uuid4().hex}").touch()
+    if task.get("crash"):
+        os._exit(3)  # a worker process dying abruptly
     if task.get("sleep"):
         time.sleep(float(task["sleep"]))
     if task.get("fail"):

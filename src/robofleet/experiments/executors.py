@@ -19,6 +19,7 @@ import logging
 import os
 from collections import deque
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
+from concurrent.futures.process import BrokenProcessPool
 from typing import Any, Callable, Iterator, Mapping
 
 from ..core.errors import ConfigError, RobofleetError
@@ -105,8 +106,9 @@ def run_processes(fn: TaskFn, tasks: list[dict], workers: int) -> Iterator[tuple
     """Tasks on a local :class:`~concurrent.futures.ProcessPoolExecutor`.
 
     ``fn`` must be a module-level function (workers receive it by reference). A worker
-    that dies (e.g. killed by the OS) turns its task, and those the broken pool can no
-    longer run, into failure rows; they are retried on the next run.
+    that dies (e.g. killed by the OS) turns its task, and the tasks already queued on the
+    broken pool, into failure rows (retried on the next run); the remaining tasks go to a
+    fresh pool.
     """
     pending = deque(tasks)
     window = workers * WINDOW_PER_WORKER
@@ -116,7 +118,13 @@ def run_processes(fn: TaskFn, tasks: list[dict], workers: int) -> Iterator[tuple
         while pending or in_flight:
             while pending and len(in_flight) < window:
                 task = pending.popleft()
-                in_flight[pool.submit(call_task, fn, task)] = task
+                try:
+                    future = pool.submit(call_task, fn, task)
+                except BrokenProcessPool:  # a worker died: go on with a fresh pool
+                    pool.shutdown(wait=False, cancel_futures=True)
+                    pool = ProcessPoolExecutor(max_workers=workers)
+                    future = pool.submit(call_task, fn, task)
+                in_flight[future] = task
             done, _ = wait(in_flight, return_when=FIRST_COMPLETED)
             for future in done:
                 task = in_flight.pop(future)

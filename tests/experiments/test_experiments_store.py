@@ -1,0 +1,144 @@
+"""The Parquet result store: atomic per-task files, resumable ids, failures."""
+
+from __future__ import annotations
+
+import json
+
+import pyarrow.parquet as pq
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from robofleet.core.errors import ConfigError
+from robofleet.experiments import ResultStore, deterministic_columns
+from robofleet.experiments.store import check_tasks, file_stem
+from urllib.parse import unquote
+
+
+def test_rows_carry_task_fields_and_task_fields_win(tmp_path):
+    store = ResultStore(tmp_path)
+    store.write_rows({"run_id": "a", "seed": 3, "speed": 1.5}, [{"x": 1.0, "seed": 99}, {"x": 2.0}])
+    frame = store.read()
+    assert frame[["run_id", "seed", "speed", "x"]].values.tolist() == [["a", 3, 1.5, 1.0], ["a", 3, 1.5, 2.0]]
+    assert frame["error"].isna().all()
+    assert store.finished_ids() == {"a"}
+
+
+def test_interrupted_write_leaves_no_file_and_is_not_finished(tmp_path, monkeypatch):
+    store = ResultStore(tmp_path)
+    store.write_rows({"run_id": "kept", "seed": 0}, [{"x": 1.0}])
+
+    def write_half_then_die(table, where, **kwargs):
+        with open(where, "wb") as handle:
+            handle.write(b"PAR1 partial bytes")
+        raise KeyboardInterrupt  # what a kill looks like from inside this process
+
+    monkeypatch.setattr(pq, "write_table", write_half_then_die)
+    with pytest.raises(KeyboardInterrupt):
+        store.write_rows({"run_id": "lost", "seed": 1}, [{"x": 2.0}])
+    monkeypatch.undo()
+    assert store.finished_ids() == {"kept"}
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["run-kept.parquet"]
+    assert store.read()["run_id"].tolist() == ["kept"]
+
+
+def test_temporaries_of_a_killed_writer_are_ignored_then_removed(tmp_path):
+    store = ResultStore(tmp_path)
+    store.write_rows({"run_id": "a", "seed": 0}, [{"x": 1.0}])
+    stray = tmp_path / ".run-b.parquet.tmp-123-abcdef01"
+    stray.write_bytes(b"PAR1 truncated")
+    assert store.finished_ids() == {"a"}
+    assert store.read()["run_id"].tolist() == ["a"]
+    assert store.remove_temporaries() == 1
+    assert not stray.exists()
+
+
+def test_failure_is_kept_then_replaced_by_a_later_success(tmp_path):
+    store = ResultStore(tmp_path)
+    store.write_error({"run_id": "r", "seed": 5, "p": 1}, "ValueError: boom")
+    assert store.finished_ids() == set() and store.failed_ids() == {"r"}
+    frame = store.read()
+    assert frame[["run_id", "seed", "p", "error"]].values.tolist() == [["r", 5, 1, "ValueError: boom"]]
+    store.write_rows({"run_id": "r", "seed": 5, "p": 1}, [{"x": 0.5}])
+    assert store.finished_ids() == {"r"} and store.failed_ids() == set()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["run-r.parquet"]
+    assert store.read()["error"].tolist() == [None]
+
+
+def test_success_file_wins_over_a_stale_error_file(tmp_path):
+    store = ResultStore(tmp_path)
+    store.write_rows({"run_id": "r", "seed": 0}, [{"x": 1.0}])
+    store.write_error({"run_id": "r", "seed": 0}, "stale")  # as if killed between rename and unlink
+    frame = store.read()
+    assert len(frame) == 1 and frame["error"].tolist() == [None]
+
+
+def test_nested_values_become_json_and_mixed_columns_text(tmp_path):
+    store = ResultStore(tmp_path)
+    store.write_rows({"run_id": "a", "seed": 0, "starts": [[0, 1], [2, 3]]}, [{"v": 1}, {"v": "two"}])
+    frame = store.read()
+    assert json.loads(frame["starts"][0]) == [[0, 1], [2, 3]]
+    assert frame["v"].tolist() == ["1", "two"]
+
+
+def test_task_without_rows_is_recorded(tmp_path):
+    store = ResultStore(tmp_path)
+    store.write_rows({"run_id": "empty", "seed": 0, "p": 2.0}, [])
+    assert store.finished_ids() == {"empty"}
+    assert len(store.read()) == 0
+
+
+def test_empty_store_reads_as_empty_frame_with_key_columns(tmp_path):
+    frame = ResultStore(tmp_path / "missing").read()
+    assert len(frame) == 0 and {"run_id", "seed", "error"} <= set(frame.columns)
+
+
+def test_schemas_differing_between_files_are_unified(tmp_path):
+    store = ResultStore(tmp_path)
+    store.write_rows({"run_id": "a", "seed": 0}, [{"x": None}])
+    store.write_rows({"run_id": "b", "seed": 1}, [{"x": 2.5, "y": True}])
+    frame = store.read()
+    assert frame["x"].tolist()[1] == 2.5 and frame["y"].tolist()[1] is True
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.text(min_size=1, max_size=60))
+def test_any_run_id_round_trips_through_a_file_name(run_id):
+    stem = file_stem(run_id)
+    assert "/" not in stem and "\x00" not in stem and stem not in (".", "..")
+    assert unquote(stem) == run_id
+
+
+def test_run_ids_with_slashes_and_dots_are_stored_and_listed(tmp_path):
+    store = ResultStore(tmp_path)
+    for run_id in ["method=bvc/seed=3", "..", "a b%2F"]:
+        store.write_rows({"run_id": run_id, "seed": 0}, [{"x": 1}])
+    assert store.finished_ids() == {"method=bvc/seed=3", "..", "a b%2F"}
+    assert all(p.parent == tmp_path for p in tmp_path.iterdir())
+
+
+@pytest.mark.parametrize(
+    "tasks, words",
+    [
+        ([{"seed": 1}], "run_id"),
+        ([{"run_id": "", "seed": 1}], "run_id"),
+        ([{"run_id": "a", "seed": True}], "seed"),
+        ([{"run_id": "a", "seed": -1}], "seed"),
+        ([{"run_id": "a", "seed": 1.0}], "seed"),
+        ([{"run_id": "a", "seed": 1}, {"run_id": "a", "seed": 2}], "duplicate"),
+        ([{"run_id": "a", "seed": 1, "error": "x"}], "reserved"),
+        ([{"run_id": "x" * 300, "seed": 1}], "run_id"),
+        (["not a dict"], "tasks[0]"),
+    ],
+)
+def test_malformed_tasks_raise_one_line_config_errors(tasks, words):
+    with pytest.raises(ConfigError) as info:
+        check_tasks(tasks)
+    assert words in str(info.value) and "\n" not in str(info.value)
+
+
+def test_timing_columns_are_left_out_of_determinism_checks():
+    import pandas as pd
+
+    frame = pd.DataFrame(columns=["run_id", "seed", "median_step_seconds", "compute_seconds", "makespan"])
+    assert deterministic_columns(frame) == ["run_id", "seed", "makespan"]
