@@ -66,6 +66,7 @@ def motion_summary(
     goal_tolerance: float,
     workspace: Workspace | None = None,
     step_seconds: np.ndarray | None = None,
+    arrivals: np.ndarray | None = None,
 ) -> dict:
     """The standard summary of a continuous-motion run.
 
@@ -74,10 +75,14 @@ def motion_summary(
     ``collision_steps``, ``min_pair_distance`` and ``min_obstacle_distance`` (centre
     distances, over the whole run), ``arrived`` (share of robots), ``makespan`` and
     ``mean_travel_time`` (seconds; ``nan`` where undefined), ``median_step_seconds``.
+    ``arrivals`` (per-robot arrival steps, ``-1`` = never) may be given by a simulation
+    that decides arrival itself (e.g. robots that stop once their estimate is at the
+    goal); otherwise :func:`arrival_steps` derives it from the positions.
     """
     contacts, min_pair = pair_contacts(positions, radius)
     obs_hits, min_obs = obstacle_contacts(positions, radius, workspace) if workspace else (np.empty((0, 2)), np.full(len(positions), np.inf))
-    arrivals = arrival_steps(positions, goals, goal_tolerance)
+    if arrivals is None:
+        arrivals = arrival_steps(positions, goals, goal_tolerance)
     arrived = arrivals >= 0
     n_pairs = len({(int(i), int(j)) for _, i, j in contacts})
     n_obs = len({int(r) for _, r in obs_hits})

@@ -63,6 +63,7 @@ class Trace:
                     float(md.get("goal_tolerance", 0.0)),
                     self.workspace,
                     self.arrays.get("step_seconds"),
+                    self.arrays.get("arrival_steps"),
                 )
             )
         out.update(self.results)

@@ -1,0 +1,145 @@
+"""One-step B-UAVC controller for single-integrator robots with the deadlock heuristic
+of paper 003, appendix C (notes/buavc.md "Controllers", "Deadlock heuristic").
+
+Each step, robot i projects its (possibly temporary) goal onto its cell, ``g* = Π_Vi(g)``,
+and commands ``u = min(v_max, ‖g* − p̂‖/Δt) · (g* − p̂)/‖g* − p̂‖`` (zero when the cell is
+empty or once the robot has reached its goal, after which it holds its position).
+
+Deadlock detection (ours, documented): a robot that has not arrived is deadlocked when,
+over the last ``window`` steps, its estimated distance to the goal shrank by less than
+``progress_fraction · v_max · window · Δt`` (estimates are noisy, so a window is used
+instead of a single-step test), or when its projected goal coincides with its estimate.
+Recovery (appendix C): if an obstacle constraint is active at ``g*``, head for the vertex
+of that obstacle grown by ``r_s`` that minimises ``‖p̂ − v‖ + ‖v − g‖``; otherwise (an edge
+shared with a robot, a wall, or a cell vertex) rotate the goal clockwise by 90° about the
+robot, ``g_tmp = R_z(−90°)(g − p̂) + p̂``, for ``recover_steps`` steps.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .cell import Cells, Kind
+from .projection import project_onto_cells
+
+NORMAL, ROTATE, VERTEX = 0, 1, 2
+_CLOCKWISE_90 = np.array([[0.0, 1.0], [-1.0, 0.0]])  # R_z(−90°)
+
+
+@dataclass(frozen=True)
+class DeadlockParams:
+    """Parameters of the deadlock heuristic (appendix C)."""
+
+    enabled: bool = True
+    window: int = 20
+    progress_fraction: float = 0.25
+    recover_steps: int = 10
+
+
+@dataclass
+class ControllerState:
+    """Per-robot memory of the controller (a robot keeps only its own)."""
+
+    arrived: np.ndarray
+    mode: np.ndarray
+    mode_left: np.ndarray
+    target: np.ndarray
+    goal_dist_history: np.ndarray  # (window, N) ring buffer of estimated goal distances
+    step: int = 0
+    deadlocks: np.ndarray = field(default=None)
+
+    @classmethod
+    def initial(cls, n: int, window: int) -> "ControllerState":
+        return cls(
+            arrived=np.zeros(n, bool),
+            mode=np.zeros(n, np.int8),
+            mode_left=np.zeros(n, np.int32),
+            target=np.zeros((n, 2)),
+            goal_dist_history=np.full((max(window, 1), n), np.nan),
+            deadlocks=np.zeros(n, np.int64),
+        )
+
+
+def single_integrator_control(
+    estimates: np.ndarray,
+    goals: np.ndarray,
+    cells: Cells,
+    state: ControllerState,
+    *,
+    v_max: np.ndarray,
+    dt: float,
+    goal_tolerance: float,
+    deadlock: DeadlockParams,
+    grown_obstacles: np.ndarray | None = None,
+) -> tuple[np.ndarray, dict]:
+    """Velocity commands ``(N, 2)`` for one control step; updates ``state`` in place.
+
+    ``grown_obstacles`` holds ``(O, V, 2)`` vertices of the obstacles grown by ``r_s``
+    (padded by repetition), used by the obstacle branch of the heuristic.
+    Returns the commands and a dict with the projected goals, empty-cell mask and the
+    robots newly detected in deadlock.
+    """
+    goal_dist = np.linalg.norm(goals - estimates, axis=1)
+    state.arrived |= goal_dist <= goal_tolerance
+    working_goal = _working_goal(estimates, goals, state)
+    proj = project_onto_cells(working_goal, cells)
+    target = np.where(proj.empty[:, None], estimates, proj.point)
+    delta = target - estimates
+    dist = np.linalg.norm(delta, axis=1)
+    speed = np.minimum(v_max, dist / dt)
+    u = np.where(dist[:, None] > 1e-12, delta * (speed / np.maximum(dist, 1e-300))[:, None], 0.0)
+    u[state.arrived] = 0.0
+    stuck = _detect_deadlock(goal_dist, dist, state, v_max, dt, deadlock)
+    if deadlock.enabled and stuck.any():
+        _start_recovery(stuck, estimates, goals, cells, proj.active, state, deadlock, grown_obstacles)
+    state.mode_left -= state.mode != NORMAL
+    state.mode[state.mode_left <= 0] = NORMAL
+    state.step += 1
+    return u, {"projected": proj.point, "empty": proj.empty, "deadlocked": stuck}
+
+
+def _working_goal(estimates, goals, state: ControllerState) -> np.ndarray:
+    """The goal each robot steers to this step: its goal, the rotated goal, or an obstacle vertex."""
+    g = goals.copy()
+    rot = state.mode == ROTATE
+    if rot.any():
+        g[rot] = (goals[rot] - estimates[rot]) @ _CLOCKWISE_90.T + estimates[rot]
+    vert = state.mode == VERTEX
+    g[vert] = state.target[vert]
+    return g
+
+
+def _detect_deadlock(goal_dist, move_dist, state: ControllerState, v_max, dt, params: DeadlockParams) -> np.ndarray:
+    hist = state.goal_dist_history
+    slot = state.step % len(hist)
+    before = hist[slot].copy()
+    hist[slot] = goal_dist
+    if not params.enabled:
+        return np.zeros(len(goal_dist), bool)
+    min_progress = params.progress_fraction * v_max * len(hist) * dt
+    slow = np.isfinite(before) & (before - goal_dist < min_progress)
+    sitting = move_dist < 1e-9
+    stuck = (slow | sitting) & ~state.arrived & (state.mode == NORMAL)
+    hist[:, stuck] = np.nan  # restart the window after a recovery
+    state.deadlocks += stuck
+    return stuck
+
+
+def _start_recovery(stuck, estimates, goals, cells: Cells, active, state: ControllerState, params: DeadlockParams, grown):
+    rows = np.flatnonzero(stuck)
+    act = active[rows]
+    kinds = np.where(act >= 0, cells.kind[rows[:, None], np.maximum(act, 0)], -1)
+    sources = np.where(act >= 0, cells.source[rows[:, None], np.maximum(act, 0)], -1)
+    on_obstacle = kinds == Kind.OBSTACLE
+    use_vertex = on_obstacle.any(axis=1) & (grown is not None)
+    state.mode[rows] = ROTATE
+    state.mode_left[rows] = params.recover_steps
+    if use_vertex.any():
+        vr = rows[use_vertex]
+        obstacle = sources[use_vertex][np.arange(use_vertex.sum()), np.argmax(on_obstacle[use_vertex], axis=1)]
+        verts = grown[obstacle]  # (R, V, 2)
+        detour = np.linalg.norm(verts - estimates[vr, None], axis=-1) + np.linalg.norm(verts - goals[vr, None], axis=-1)
+        state.target[vr] = verts[np.arange(len(vr)), np.argmin(detour, axis=1)]
+        state.mode[vr] = VERTEX
