@@ -16,9 +16,9 @@ from rich.console import Console
 from rich.table import Table
 
 from ..core.errors import RobofleetError
-from ..experiments.executors import Executor
 
-MAX_TABLE_COLUMNS = 8
+MAX_TABLE_COLUMNS = 5
+PREFERRED_COLUMNS = ("success", "collisions", "min_pair_distance", "makespan", "mean_travel_time")
 
 
 def register(app: typer.Typer, reproduce: typer.Typer) -> None:
@@ -80,7 +80,7 @@ def validate_command(scenario: Annotated[Path, typer.Argument(help="Scenario YAM
 
 def sweep_command(
     sweep: Annotated[Path, typer.Argument(help="Sweep YAML file (scenario × grid × seeds).")],
-    executor: Annotated[Executor, typer.Option(help="Where the runs execute.")] = Executor.process,
+    executor: Annotated[str, typer.Option(help="Where the runs execute: serial, process (local worker processes) or dask.")] = "process",
     scheduler: Annotated[Optional[str], typer.Option(help="Dask scheduler address, e.g. tcp://host:8786 (default: a local cluster).")] = None,
     workers: Annotated[Optional[int], typer.Option(min=1, help="Local worker processes (default: available CPUs).")] = None,
     out: Annotated[Optional[Path], typer.Option(help="Result store directory (default: the sweep's out, else results/<sweep>).")] = None,
@@ -88,13 +88,16 @@ def sweep_command(
     """Run a sweep, resuming from its result store; print the means per parameter combination."""
     from ..experiments import run_sweep, summarize_sweep
 
-    frame = run_sweep(sweep, executor=executor.value, scheduler=scheduler, progress=True, workers=workers, out=out)
+    frame = run_sweep(sweep, executor=executor, scheduler=scheduler, progress=True, workers=workers, out=out)
     failed = int(frame["error"].notna().sum())
     typer.echo(f"results: {frame.attrs['store']}/ ({frame['run_id'].nunique()} runs, {failed} failed)")
     if frame.attrs.get("other_rows"):
         typer.echo(f"note: the store also holds {frame.attrs['other_rows']} rows of other sweeps (not shown)")
     means = summarize_sweep(frame)
-    Console().print(frame_table(means, "means per parameter combination", leading=len(frame.attrs["grid"]) + 2))
+    leading = list(means.columns[: len(frame.attrs["grid"]) + 2])
+    values = [c for c in means.columns if c not in leading]
+    values = [c for c in PREFERRED_COLUMNS if c in values] + [c for c in values if c not in PREFERRED_COLUMNS]
+    Console().print(frame_table(means[leading + values], "means per parameter combination", leading=len(leading)))
     if failed:
         first = frame.loc[frame["error"].notna(), ["run_id", "error"]].iloc[0]
         typer.echo(f"first failure: run {first['run_id']}: {first['error']}")
@@ -120,7 +123,7 @@ def frame_table(frame, title: str, leading: int = 0) -> Table:
     and at most :data:`MAX_TABLE_COLUMNS` more."""
     columns = list(frame.columns)
     shown = columns[: leading + MAX_TABLE_COLUMNS]
-    note = "" if len(shown) == len(columns) else f" (first {len(shown)} of {len(columns)} columns)"
+    note = "" if len(shown) == len(columns) else f" ({len(shown)} of {len(columns)} columns; all in the store)"
     table = Table(title=title + note)
     for column in shown:
         table.add_column(str(column), justify="right")

@@ -42,7 +42,7 @@ from ..core.errors import ScenarioError
 from ..core.rng import spawn_seeds
 from ..core.trace import to_plain
 from ..scenarios import SpecModel, load_scenario, read_mapping, simulate, validate_model
-from .executors import Executor
+from .executors import Executor, as_executor
 from .store import ERROR_COLUMN, ResultStore
 from .tasks import run_tasks
 
@@ -235,6 +235,7 @@ def run_sweep(
         ``error``. ``frame.attrs`` holds ``store`` (the directory), ``grid`` (the grid
         paths) and ``other_rows`` (rows in the store from other sweeps).
     """
+    as_executor(executor)
     plan = plan_sweep(sweep_file_or_mapping, out)
     every = run_tasks(plan.fn, plan.tasks, ResultStore(plan.out), executor=executor, scheduler=scheduler, workers=workers, progress=progress)
     order = {task["run_id"]: index for index, task in enumerate(plan.tasks)}

@@ -1,0 +1,170 @@
+"""Sweeps: validation of the sweep file, task expansion, stable run ids, end to end."""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+import pandas as pd
+import pytest
+import yaml
+
+from robofleet.core.errors import ScenarioError
+from robofleet.core.rng import spawn_seeds
+from robofleet.experiments import deterministic_columns, plan_sweep, run_sweep, summarize_sweep
+from robofleet.experiments.sweep import stable_run_id
+
+SCENARIO = {"family": "toy", "robots": {"n": 3, "radius": 0.2}, "noise": {"sigma": 0.05}, "steps": 15}
+
+
+def write_sweep(tmp_path, name="sweep.yaml", **sweep):
+    (tmp_path / "toy.yaml").write_text(yaml.safe_dump(SCENARIO))
+    doc = {"scenario": "toy.yaml", "grid": {"noise.sigma": [0.0, 0.3], "robots.n": [2, 4]}, "seeds": 3, "out": str(tmp_path / "out")}
+    doc.update(sweep)
+    doc = {k: v for k, v in doc.items() if v is not None}
+    path = tmp_path / name
+    path.write_text(yaml.safe_dump(doc, sort_keys=False))
+    return path
+
+
+def test_tasks_are_grid_product_times_seeds(tmp_path, toy_family):
+    plan = plan_sweep(write_sweep(tmp_path, root_seed=7))
+    assert plan.grid_keys == ("noise.sigma", "robots.n")
+    assert plan.seeds == tuple(spawn_seeds(7, 3))
+    expected = [(s, n, seed) for s, n in itertools.product([0.0, 0.3], [2, 4]) for seed in plan.seeds]
+    assert [(t["noise.sigma"], t["robots.n"], t["seed"]) for t in plan.tasks] == expected
+    assert len({t["run_id"] for t in plan.tasks}) == 12
+
+
+def test_explicit_seed_list_and_empty_grid(tmp_path, toy_family):
+    plan = plan_sweep(write_sweep(tmp_path, grid={}, seeds=[5, 1, 9]))
+    assert [t["seed"] for t in plan.tasks] == [5, 1, 9] and plan.grid_keys == ()
+
+
+def test_run_ids_are_stable_and_depend_on_scenario_parameters_and_seed(tmp_path, toy_family):
+    first = plan_sweep(write_sweep(tmp_path))
+    again = plan_sweep(write_sweep(tmp_path / ".." / tmp_path.name, name="copy.yaml"))
+    assert [t["run_id"] for t in first.tasks] == [t["run_id"] for t in again.tasks]
+    assert stable_run_id(SCENARIO, {"a": 1}, 3) == stable_run_id(dict(reversed(SCENARIO.items())), {"a": 1}, 3)
+    assert stable_run_id(SCENARIO, {"a": 1}, 3) != stable_run_id(SCENARIO, {"a": 2}, 3)
+    assert stable_run_id(SCENARIO, {"a": 1}, 3) != stable_run_id(SCENARIO, {"a": 1}, 4)
+    assert stable_run_id(SCENARIO, {"a": 1}, 3) != stable_run_id({**SCENARIO, "steps": 16}, {"a": 1}, 3)
+
+
+def test_end_to_end_rows_summary_and_resume(tmp_path, toy_family):
+    path = write_sweep(tmp_path)
+    frame = run_sweep(path, executor="serial", progress=False)
+    plan = plan_sweep(path)
+    assert frame["run_id"].tolist() == [t["run_id"] for t in plan.tasks]
+    assert frame.attrs["grid"] == ["noise.sigma", "robots.n"] and frame.attrs["store"] == str(tmp_path / "out")
+    assert frame["error"].isna().all()
+    # each row is the run's own summary, replayable from its seed
+    row = frame.iloc[7]
+    from robofleet import load_scenario, simulate
+
+    spec = load_scenario(tmp_path / "toy.yaml", overrides={"noise.sigma": row["noise.sigma"], "robots.n": int(row["robots.n"])})
+    replay = simulate(spec, seed=int(row["seed"])).summary()
+    assert replay["final_spread"] == row["final_spread"] and replay["n_robots"] == row["robots.n"]
+    # re-running writes nothing new
+    before = {p.name: p.stat().st_mtime_ns for p in (tmp_path / "out").iterdir()}
+    again = run_sweep(path, executor="serial", progress=False)
+    assert {p.name: p.stat().st_mtime_ns for p in (tmp_path / "out").iterdir()} == before
+    pd.testing.assert_frame_equal(again, frame)
+
+
+def test_same_rows_with_processes_as_serially(tmp_path, toy_family):
+    path = write_sweep(tmp_path)
+    serial = run_sweep(path, executor="serial", progress=False, out=tmp_path / "serial")
+    process = run_sweep(path, executor="process", workers=2, progress=False, out=tmp_path / "process")
+    columns = deterministic_columns(serial)
+    assert "median_step_seconds" not in columns and "makespan" in columns
+    pd.testing.assert_frame_equal(serial[columns], process[columns])
+
+
+def test_metrics_keep_only_the_listed_summary_keys(tmp_path, toy_family):
+    frame = run_sweep(write_sweep(tmp_path, metrics=["success", "final_spread"]), executor="serial", progress=False)
+    assert set(frame.columns) == {"run_id", "seed", "noise.sigma", "robots.n", "success", "final_spread", "error"}
+
+
+def test_unknown_metric_becomes_failure_rows(tmp_path, toy_family):
+    frame = run_sweep(write_sweep(tmp_path, metrics=["nope"], seeds=1), executor="serial", progress=False)
+    assert frame["error"].str.contains("nope").all() and len(frame) == 4
+
+
+def test_inline_scenario_and_default_out(tmp_path, toy_family, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    frame = run_sweep({"scenario": SCENARIO, "grid": {"steps": [3]}, "seeds": 2}, executor="serial", progress=False)
+    assert frame.attrs["store"] == "results/sweep" and (tmp_path / "results" / "sweep").is_dir()
+    path = write_sweep(tmp_path, name="mine.yaml", out=None, seeds=1)
+    assert plan_sweep(path).out.as_posix() == "results/mine"
+
+
+def test_summary_means_per_combination(tmp_path, toy_family):
+    frame = run_sweep(write_sweep(tmp_path), executor="serial", progress=False)
+    means = summarize_sweep(frame)
+    assert means[["noise.sigma", "robots.n"]].values.tolist() == [[0.0, 2], [0.0, 4], [0.3, 2], [0.3, 4]]
+    assert means["runs"].tolist() == [3, 3, 3, 3] and means["failed"].tolist() == [0, 0, 0, 0]
+    for _, row in means.iterrows():
+        group = frame[(frame["noise.sigma"] == row["noise.sigma"]) & (frame["robots.n"] == row["robots.n"])]
+        assert row["final_spread"] == pytest.approx(group["final_spread"].mean())
+        assert row["success"] == pytest.approx(group["success"].astype(float).mean())
+    assert "seed" not in means and "run_id" not in means
+
+
+@pytest.mark.parametrize(
+    "change, field",
+    [
+        ({"colour": "red"}, "colour"),
+        ({"scenario": 3}, "scenario"),
+        ({"grid": [1, 2]}, "grid"),
+        ({"grid": {"noise.sigma": []}}, "grid.noise.sigma"),
+        ({"grid": {"noise.sigma": 0.1}}, "grid.noise.sigma"),
+        ({"grid": {"seed": [1]}}, "grid.seed"),
+        ({"grid": {"a..b": [1]}}, "grid"),
+        ({"seeds": 0}, "seeds"),
+        ({"seeds": -2}, "seeds"),
+        ({"seeds": []}, "seeds"),
+        ({"seeds": [1, "2"]}, "seeds"),
+        ({"seeds": [1, 1]}, "seeds"),
+        ({"seeds": True}, "seeds"),
+        ({"root_seed": -1}, "root_seed"),
+        ({"metrics": []}, "metrics"),
+        ({"out": 5}, "out"),
+    ],
+)
+def test_invalid_sweep_files_name_file_and_field(tmp_path, toy_family, change, field):
+    path = write_sweep(tmp_path, **change)
+    with pytest.raises(ScenarioError) as info:
+        plan_sweep(path)
+    message = str(info.value)
+    assert message.startswith(f"{path}: {field}") and "\n" not in message and "expected" in message
+
+
+def test_missing_seeds_is_an_error(tmp_path, toy_family):
+    path = write_sweep(tmp_path)
+    doc = yaml.safe_load(path.read_text())
+    del doc["seeds"]
+    path.write_text(yaml.safe_dump(doc))
+    with pytest.raises(ScenarioError, match="seeds: expected this required field"):
+        plan_sweep(path)
+
+
+def test_grid_value_invalidating_the_scenario_is_caught_before_running(tmp_path, toy_family):
+    path = write_sweep(tmp_path, grid={"robots.radius": [0.1, -1.0]})
+    with pytest.raises(ScenarioError) as info:
+        run_sweep(path, executor="serial", progress=False)
+    message = str(info.value)
+    assert message.startswith(f"{path}: grid robots.radius=-1.0 → {tmp_path / 'toy.yaml'}: robots.radius: expected")
+    assert not (tmp_path / "out").exists()
+
+
+def test_grid_path_not_in_the_scenario_is_caught(tmp_path, toy_family):
+    path = write_sweep(tmp_path, grid={"robots.colour": ["red"]})
+    with pytest.raises(ScenarioError, match=r"grid robots.colour='red' → .*toy.yaml: robots.colour: expected no such key"):
+        plan_sweep(path)
+
+
+def test_missing_scenario_file_is_named(tmp_path, toy_family):
+    path = write_sweep(tmp_path, scenario="absent.yaml", grid={})
+    with pytest.raises(ScenarioError, match=r"sweep.yaml: scenario → .*absent.yaml: expected a readable YAML file"):
+        plan_sweep(path)
