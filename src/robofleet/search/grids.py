@@ -1,0 +1,244 @@
+"""The three regular grids of Section 3 (Fig. 1), fitted to the search area.
+
+Paper 002 (X. Yang, CCC 2017), Section 3: robots move along the edges of a regular
+tessellation — equilateral triangles (T), squares (S) or regular hexagons (H) — with side
+length ``a``. A vertex is *accessible* when a robot standing on it keeps the safety
+radius ``r_safe`` from every obstacle and from the border (Fig. 2: ``v4`` lies within
+``r_safe`` of the boundary and cannot be visited); an edge can be travelled when the whole
+segment keeps that clearance (Section 4.1, step 2: an obstacle "blocking the way to the
+neighbour").
+
+Vertices are integer ids; every per-step query is a table look-up:
+
+* ``points``       ``(V, 2)`` float64 coordinates,
+* ``neighbours``   ``(V, k)`` int ids of the lattice neighbours one edge away, ``-1`` padded
+  (``k`` = 6 / 4 / 3 for T / S / H),
+* ``edge_ok``      ``(V, k)`` bool: the edge exists, both ends are accessible and the
+  segment keeps ``r_safe`` clearance,
+* ``block_distance`` ``(V, k)`` float: distance from the vertex to the nearest point of an
+  obstacle or of the outside that blocks the edge (``inf`` for a free edge); a robot senses
+  the blockage when this distance is at most ``r_so`` (see :mod:`.sensing`),
+* ``priority``     ``(V,)`` int: rank of the vertex in the step-4 choice order.
+
+Building a grid is O(V log V) with a k-d tree plus vectorized shapely distance queries;
+it is done once per area and cached by callers.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import cached_property
+from enum import Enum
+
+import numpy as np
+import shapely
+from scipy import sparse
+from scipy.sparse import csgraph
+from scipy.spatial import cKDTree
+from shapely.geometry import Polygon, box
+
+from ..core.errors import ConfigError
+from ..core.workspace import Workspace
+
+#: tolerance of length comparisons (equality conditions of Table 1 are used verbatim)
+EPS = 1e-9
+
+
+class GridKind(str, Enum):
+    """The three regular tessellations of Fig. 1."""
+
+    TRIANGULAR = "triangular"
+    SQUARE = "square"
+    HEXAGONAL = "hexagonal"
+
+
+#: number of lattice neighbours of a vertex (the degree of the tessellation's vertex)
+DEGREE = {GridKind.TRIANGULAR: 6, GridKind.SQUARE: 4, GridKind.HEXAGONAL: 3}
+
+
+@dataclass(frozen=True, eq=False)
+class Grid:
+    """A regular grid fitted to a workspace (see the module docstring for the arrays)."""
+
+    kind: GridKind
+    a: float
+    r_safe: float
+    points: np.ndarray
+    neighbours: np.ndarray
+    accessible: np.ndarray
+    edge_ok: np.ndarray
+    block_distance: np.ndarray
+    priority: np.ndarray
+    workspace: Workspace
+
+    @cached_property
+    def edge_units(self) -> np.ndarray:
+        """``(V, k, 2)`` unit vectors along each edge (zero for missing neighbours)."""
+        vec = self.points[np.maximum(self.neighbours, 0)] - self.points[:, None, :]
+        return np.where((self.neighbours >= 0)[:, :, None], vec / self.a, 0.0)
+
+    @cached_property
+    def components(self) -> np.ndarray:
+        """Connected-component label of every vertex in the graph of travellable edges."""
+        src, slot = np.nonzero(self.edge_ok)
+        graph = sparse.coo_matrix((np.ones(len(src)), (src, self.neighbours[src, slot])), shape=(self.n_vertices,) * 2)
+        return csgraph.connected_components(graph, directed=False)[1]
+
+    @property
+    def n_vertices(self) -> int:
+        return len(self.points)
+
+    @property
+    def degree(self) -> int:
+        return self.neighbours.shape[1]
+
+    def nearest_vertex(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Ids of the vertices nearest to ``points (m, 2)`` and their distances."""
+        dist, idx = cKDTree(self.points).query(np.asarray(points, dtype=float).reshape(-1, 2))
+        return idx.astype(np.intp), dist
+
+    def reachable_from(self, starts: np.ndarray) -> np.ndarray:
+        """Boolean mask of vertices reachable from ``starts`` along travellable edges."""
+        labels = self.components
+        return np.isin(labels, labels[np.asarray(starts, dtype=np.intp)])
+
+    def border_vertices(self) -> np.ndarray:
+        """Accessible vertices of the outermost accessible ring along the outer border.
+
+        Assumption 2.2 places the robots "at different vertices along the border of the
+        area": a vertex is on the border when its distance to the outer boundary is below
+        ``a + r_safe`` (no accessible vertex lies between it and the border).
+        """
+        dist = self.workspace.boundary_distance(self.points)
+        return np.flatnonzero(self.accessible & (dist < self.a + self.r_safe - EPS))
+
+
+def lattice_points(kind: GridKind, a: float, origin: np.ndarray, extent: np.ndarray) -> np.ndarray:
+    """Lattice points of ``kind`` with edge ``a`` anchored at ``origin``, covering ``extent``.
+
+    ``extent`` is ``(width, height)`` measured from ``origin``. Triangular: rows ``a√3/2``
+    apart, odd rows shifted by ``a/2``. Square: an ``a × a`` lattice. Hexagonal
+    (honeycomb): a triangular Bravais lattice of constant ``a√3`` with two vertices per cell
+    at ``(0, 0)`` and ``(0, a)``, so that every vertex has three neighbours at distance ``a``.
+    """
+    width, height = extent
+    if kind is GridKind.SQUARE:
+        xs = np.arange(0, width / a + 1 + EPS, dtype=float) * a
+        ys = np.arange(0, height / a + 1 + EPS, dtype=float) * a
+        gx, gy = np.meshgrid(xs, ys)
+        pts = np.column_stack([gx.ravel(), gy.ravel()])
+    elif kind is GridKind.TRIANGULAR:
+        dy = a * np.sqrt(3.0) / 2.0
+        rows = np.arange(0, int(np.floor(height / dy + EPS)) + 1)
+        cols = np.arange(-1, int(np.ceil(width / a)) + 1)
+        gc, gr = np.meshgrid(cols, rows)
+        pts = np.column_stack([(gc + 0.5 * (gr % 2)).ravel() * a, gr.ravel() * dy])
+    else:
+        ex = a * np.sqrt(3.0)
+        rows = np.arange(-1, int(np.ceil(height / (1.5 * a))) + 2)
+        cols = np.arange(-1, int(np.ceil(width / ex)) + 2)
+        gc, gr = np.meshgrid(cols, rows)
+        base = np.column_stack([(gc + 0.5 * (gr % 2)).ravel() * ex, gr.ravel() * 1.5 * a])
+        pts = np.concatenate([base, base + [0.0, a]])
+    pts = pts[(pts[:, 0] >= -EPS) & (pts[:, 0] <= width + EPS) & (pts[:, 1] >= -EPS) & (pts[:, 1] <= height + EPS)]
+    return pts + origin
+
+
+def build_grid(workspace: Workspace, kind: GridKind | str, a: float, r_safe: float) -> Grid:
+    """Fit a grid of ``kind`` with edge ``a`` to ``workspace``.
+
+    The lattice is anchored at ``(xmin + r_safe, ymin + r_safe)`` so that the first row and
+    column keep exactly the safety radius from a rectangular border; only lattice points
+    inside the outer boundary belong to the grid (points inside obstacles stay, as
+    inaccessible vertices, so that robots can record them as detected).
+
+    Parameters
+    ----------
+    workspace: the search area ``A`` with its obstacles ``O_1 … O_l`` (Assumption 2.1).
+    kind: ``triangular``, ``square`` or ``hexagonal``.
+    a: edge length, > 0.
+    r_safe: safety radius, ≥ 0.
+
+    Raises
+    ------
+    ConfigError
+        When ``a ≤ 0``, ``r_safe < 0`` or the area holds no lattice point.
+    """
+    kind = GridKind(kind)
+    if not (np.isfinite(a) and a > 0):
+        raise ConfigError(f"a: expected a positive edge length, received {a!r}")
+    if not (np.isfinite(r_safe) and r_safe >= 0):
+        raise ConfigError(f"r_safe: expected a non-negative radius, received {r_safe!r}")
+    xmin, ymin, xmax, ymax = workspace.extent
+    origin = np.array([xmin + r_safe, ymin + r_safe])
+    extent = np.array([xmax - xmin - r_safe, ymax - ymin - r_safe])
+    pts = lattice_points(kind, a, origin, np.maximum(extent, 0.0))
+    inside = shapely.intersects_xy(workspace.boundary_polygon, pts[:, 0], pts[:, 1])
+    pts = pts[inside]
+    if len(pts) == 0:
+        raise ConfigError(f"grid: expected at least one lattice point inside the area, received none for a={a!r}")
+    neighbours = neighbour_table(pts, a, DEGREE[kind])
+    accessible = workspace.clearance(pts) >= r_safe - EPS
+    block = edge_block_distance(workspace, pts, neighbours, r_safe)
+    edge_ok = (neighbours >= 0) & np.isinf(block) & accessible[:, None] & accessible[np.maximum(neighbours, 0)]
+    block = np.where(edge_ok, np.inf, block)
+    return Grid(kind, float(a), float(r_safe), pts, neighbours, accessible, edge_ok, block, choice_priority(pts), workspace)
+
+
+def neighbour_table(points: np.ndarray, a: float, degree: int) -> np.ndarray:
+    """``(V, degree)`` ids of the points at distance ``a`` (``-1`` padded), ordered by angle."""
+    pairs = cKDTree(points).query_pairs(a * (1 + 1e-6), output_type="ndarray")
+    table = np.full((len(points), degree), -1, dtype=np.intp)
+    if len(pairs) == 0:
+        return table
+    src = np.concatenate([pairs[:, 0], pairs[:, 1]])
+    dst = np.concatenate([pairs[:, 1], pairs[:, 0]])
+    d = points[dst] - points[src]
+    order = np.lexsort((np.arctan2(d[:, 1], d[:, 0]), src))
+    src, dst = src[order], dst[order]
+    slot = np.arange(len(src)) - np.searchsorted(src, src)
+    table[src, slot] = dst
+    return table
+
+
+def edge_block_distance(workspace: Workspace, points: np.ndarray, neighbours: np.ndarray, r_safe: float) -> np.ndarray:
+    """Distance from each vertex to the nearest point blocking each of its edges.
+
+    An edge ``(v, w)`` is blocked by every point of an obstacle or of the outside of the
+    area that lies closer than ``r_safe`` to the segment ``vw`` (the robot would touch it
+    while travelling). Returns ``(V, k)``: the distance from ``v`` to the nearest such
+    point, ``inf`` for a free edge or a missing neighbour.
+    """
+    out = np.full(neighbours.shape, np.inf)
+    src, slot = np.nonzero(neighbours >= 0)
+    if len(src) == 0:
+        return out
+    dst = neighbours[src, slot]
+    xmin, ymin, xmax, ymax = workspace.extent
+    pad = 10.0 * (r_safe + 1.0) + (xmax - xmin) + (ymax - ymin)
+    outside = box(xmin - pad, ymin - pad, xmax + pad, ymax + pad).difference(workspace.boundary_polygon)
+    solid = shapely.union_all([outside, *[Polygon(o) for o in workspace.obstacles]])
+    segments = shapely.linestrings(np.stack([points[src], points[dst]], axis=1))
+    near = shapely.distance(segments, solid) < r_safe - EPS
+    if near.any():
+        capsules = shapely.buffer(segments[near], r_safe, quad_segs=16)
+        blockers = shapely.intersection(capsules, solid)
+        starts = shapely.points(points[src[near]])
+        dist = shapely.distance(starts, blockers)
+        out[src[near], slot[near]] = dist
+    return out
+
+
+def choice_priority(points: np.ndarray) -> np.ndarray:
+    """Rank of every vertex in the choice order of step 4 (higher rank chooses first).
+
+    Section 4.1, step 4: robot ``j`` has priority over robot ``i`` when
+    ``p_jx > p_ix`` or (``p_jy > p_iy`` and ``p_jx ≥ p_ix``) — the lexicographic order of
+    ``(x, y)``. Coordinates are rounded to 1e-9 so that vertices of one lattice column
+    compare as equal in ``x``.
+    """
+    key = np.round(points / 1e-9) * 1e-9
+    order = np.lexsort((key[:, 1], key[:, 0]))
+    rank = np.empty(len(points), dtype=np.intp)
+    rank[order] = np.arange(len(points))
+    return rank

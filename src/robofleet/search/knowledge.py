@@ -1,0 +1,82 @@
+"""What each robot knows: its own topological map, and the messages that update it.
+
+Section 1: "the map only includes the coordinates and visitation states of vertices".
+Each robot ``i`` keeps, as rows of bit sets (one bit per vertex, 64 vertices per word):
+
+* ``visited[i]``    — ``V_v,i``: vertices it knows to be visited (by itself, by the choices
+  it received, by map exchange; in situation 2 also the vertices it sensed as blocked,
+  step 2),
+* ``discovered[i]`` — vertices it has seen as accessible neighbours of visited vertices
+  (its map of the area so far; stop rule (4) asks for every discovered vertex visited),
+* ``blocked[i]``    — vertices it knows to be blocked: sensed obstacles and the vertices
+  of robots detected as failed (failure information, step 3),
+* ``targets[i]``    — ``T_k,i``: targets it knows.
+
+Rows are only ever written by the robot itself (sensing, its choice) or by
+:meth:`RobotMaps.exchange`, which ORs in the rows of its communication neighbours — the
+explicit message passing of step 3. Nothing reads another robot's row directly.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+ONE = np.uint64(1)
+WORD = 64
+
+
+class RobotMaps:
+    """Per-robot knowledge of ``n_robots`` robots on a grid of ``n_vertices`` vertices."""
+
+    def __init__(self, n_robots: int, n_vertices: int, n_targets: int):
+        words = -(-n_vertices // WORD)
+        self.n_vertices = n_vertices
+        # layers: 0 visited, 1 discovered, 2 blocked
+        self.layers = np.zeros((n_robots, 3, words), dtype=np.uint64)
+        self.targets = np.zeros((n_robots, n_targets), dtype=bool)
+
+    # -- bit-set primitives -------------------------------------------------------------
+    def test(self, layer: int, robots: np.ndarray, vertices: np.ndarray) -> np.ndarray:
+        """Bits of ``layer`` for ``robots (m,)`` at ``vertices (m, k)`` (ids ≥ 0)."""
+        words = self.layers[robots[:, None], layer, vertices >> 6]
+        return ((words >> (vertices & 63).astype(np.uint64)) & ONE).astype(bool)
+
+    def set(self, layer: int, robots: np.ndarray, vertices: np.ndarray) -> None:
+        """Set the bits of ``layer`` for the pairs ``(robots[j], vertices[j])``."""
+        robots = np.asarray(robots, dtype=np.intp).ravel()
+        vertices = np.asarray(vertices, dtype=np.intp).ravel()
+        if len(vertices):
+            np.bitwise_or.at(self.layers, (robots, layer, vertices >> 6), ONE << (vertices & 63).astype(np.uint64))
+
+    def merge_rows(self, layer: int, robots: np.ndarray, bits: np.ndarray) -> None:
+        """OR the bit rows ``bits (m, W)`` into ``layer`` of the distinct ``robots (m,)``."""
+        self.layers[robots, layer] |= bits
+
+    def as_bool(self, layer: int) -> np.ndarray:
+        """``(n_robots, V)`` boolean view of one layer (for checks and plots, not hot paths)."""
+        bits = np.unpackbits(self.layers[:, layer, :].view(np.uint8), axis=1, bitorder="little")
+        return bits[:, : self.n_vertices].astype(bool)
+
+    # -- messages -----------------------------------------------------------------------
+    def exchange(self, links: np.ndarray) -> None:
+        """Step 3: every robot ORs in the maps of its communication neighbours.
+
+        ``links (n, n)`` bool: ``links[i, j]`` when ``i`` receives ``j``'s message this
+        step (``j ∈ N_c,i(k)``, both alive). One hop per step, as in the paper's temporary
+        ad-hoc networks.
+        """
+        if not links.any():
+            return
+        merged = np.where(links[:, :, None, None], self.layers[None], np.uint64(0))
+        self.layers |= np.bitwise_or.reduce(merged, axis=1)
+        self.targets |= (links[:, :, None] & self.targets[None]).any(axis=1)
+
+    def broadcast_targets(self, found: np.ndarray, receivers: np.ndarray) -> None:
+        """Steps 1 and 8: a robot that finds a target broadcasts its position to all robots."""
+        if found.any():
+            self.targets[receivers] |= found
+
+    def frontier_empty(self) -> np.ndarray:
+        """Stop rule (4) per robot: no discovered vertex is still unvisited and unblocked."""
+        visited, discovered, blocked = self.layers[:, 0], self.layers[:, 1], self.layers[:, 2]
+        return ~np.any(discovered & ~visited & ~blocked, axis=1)
