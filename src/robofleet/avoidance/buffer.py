@@ -33,5 +33,9 @@ def shadow_epsilon(delta: float) -> float:
 
 def buffer(normals: np.ndarray, cov: np.ndarray, radius, quantile: float) -> np.ndarray:
     """β for unit normals ``(..., d)`` and the ego covariance ``(..., d, d)`` (broadcasting)."""
-    spread = np.sqrt(np.maximum(np.einsum("...i,...ij,...j->...", normals, cov, normals), 0.0))
+    if normals.shape[-1] == 2:
+        quad = normals[..., 0] * (cov[..., 0, 0] * normals[..., 0] + 2 * cov[..., 0, 1] * normals[..., 1]) + cov[..., 1, 1] * normals[..., 1] ** 2
+    else:
+        quad = np.einsum("...i,...ij,...j->...", normals, cov, normals)
+    spread = np.sqrt(np.maximum(quad, 0.0))
     return radius + quantile * spread

@@ -10,7 +10,11 @@ over the last ``window`` steps, its estimated distance to the goal shrank by les
 ``progress_fraction · v_max · window · Δt`` (estimates are noisy, so a window is used
 instead of a single-step test), or when its projected goal coincides with its estimate.
 Recovery (appendix C): if an obstacle constraint is active at ``g*``, head for the vertex
-of that obstacle grown by ``r_s`` that minimises ``‖p̂ − v‖ + ‖v − g‖``; otherwise (an edge
+of that obstacle grown by ``r_s`` that minimises ``‖p̂ − v‖ + ‖v − g‖``, until the robot is
+there (at most ``4 · recover_steps`` steps). The caller grows the obstacles by the whole
+clearance the cells enforce (r_s, the chance buffer and the ε-shadow), not by r_s alone:
+a vertex grown by r_s only lies inside the forbidden band and could never be reached.
+Otherwise (an edge
 shared with a robot, a wall, or a cell vertex) rotate the goal clockwise by 90° about the
 robot, ``g_tmp = R_z(−90°)(g − p̂) + p̂``, for ``recover_steps`` steps.
 """
@@ -94,6 +98,8 @@ def single_integrator_control(
     stuck = _detect_deadlock(goal_dist, dist, state, v_max, dt, deadlock)
     if deadlock.enabled and stuck.any():
         _start_recovery(stuck, estimates, goals, cells, proj.active, state, deadlock, grown_obstacles)
+    reached = (state.mode == VERTEX) & (np.linalg.norm(state.target - estimates, axis=1) <= max(goal_tolerance, float(np.max(v_max)) * dt))
+    state.mode_left[reached] = 0
     state.mode_left -= state.mode != NORMAL
     state.mode[state.mode_left <= 0] = NORMAL
     state.step += 1
@@ -143,3 +149,4 @@ def _start_recovery(stuck, estimates, goals, cells: Cells, active, state: Contro
         detour = np.linalg.norm(verts - estimates[vr, None], axis=-1) + np.linalg.norm(verts - goals[vr, None], axis=-1)
         state.target[vr] = verts[np.arange(len(vr)), np.argmin(detour, axis=1)]
         state.mode[vr] = VERTEX
+        state.mode_left[vr] = 4 * params.recover_steps

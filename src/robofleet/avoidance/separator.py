@@ -65,7 +65,11 @@ def separator_flat(mi: np.ndarray, ci: np.ndarray, mj: np.ndarray, cj: np.ndarra
     """:func:`gaussian_separator` on flat arrays ``(K, d)`` and ``(K, d, d)`` (no broadcasting)."""
     ci, cj = _regularise(ci, cj)
     diff = mj - mi
-    t = solve_t(diff, ci, cj)
+    same = np.all((ci == cj).reshape(len(ci), ci.shape[-1] ** 2), axis=1)
+    t = np.full(len(diff), 0.5)  # F(1/2) = 0 exactly when Σ_i = Σ_j
+    differ = np.flatnonzero(~same)
+    if len(differ):
+        t[differ] = solve_t(diff[differ], ci[differ], cj[differ])
     a = _solve(t[:, None, None] * ci + (1.0 - t)[:, None, None] * cj, diff)
     b = np.einsum("kd,kd->k", a, mi) + t * _quad(a, ci)
     norm = np.linalg.norm(a, axis=-1)
@@ -118,21 +122,33 @@ def _scale(diff, ci, cj):
 
 
 def _quad(a, cov):
+    """``aᵀ Σ a`` per row."""
+    if a.shape[-1] == 2:
+        return a[:, 0] * (cov[:, 0, 0] * a[:, 0] + 2 * cov[:, 0, 1] * a[:, 1]) + cov[:, 1, 1] * a[:, 1] ** 2
     return np.einsum("ki,kij,kj->k", a, cov, a)
 
 
 def _regularise(ci, cj):
-    """Add ``λ I`` (λ tiny relative to the pair's covariance scale) so every matrix is invertible."""
+    """Add ``λ I`` (λ tiny relative to the pair's covariance scale) where a matrix is singular."""
     d = ci.shape[-1]
+    if _det(ci).min(initial=1.0) > 0 and _det(cj).min(initial=1.0) > 0:
+        return ci, cj
     scale = np.maximum(np.trace(ci, axis1=1, axis2=2), np.trace(cj, axis1=1, axis2=2)) / d
     lam = np.where(scale > 0, scale * _REG, _REG)[:, None, None] * np.eye(d)
     return ci + lam, cj + lam
 
 
+def _det(m: np.ndarray) -> np.ndarray:
+    """Determinants of a stack of matrices (closed form for 2×2)."""
+    if m.shape[-1] == 2:
+        return m[:, 0, 0] * m[:, 1, 1] - m[:, 0, 1] * m[:, 1, 0]
+    return np.linalg.det(m)
+
+
 def _solve(m: np.ndarray, v: np.ndarray) -> np.ndarray:
     """Solve ``m x = v`` for stacks of 2×2 (closed form) or d×d matrices."""
     if m.shape[-1] == 2:
-        det = m[:, 0, 0] * m[:, 1, 1] - m[:, 0, 1] * m[:, 1, 0]
+        det = _det(m)
         x0 = (m[:, 1, 1] * v[:, 0] - m[:, 0, 1] * v[:, 1]) / det
         x1 = (m[:, 0, 0] * v[:, 1] - m[:, 1, 0] * v[:, 0]) / det
         return np.stack([x0, x1], axis=-1)

@@ -41,6 +41,13 @@ class MethodSetup:
     quantile: float            # Φ⁻¹(√(1 − δ)) (0 for BVC variants)
     obstacles: ObstacleSet
 
+    def obstacle_clearance(self, obstacle_cov: np.ndarray) -> float:
+        """Largest distance the cells keep a robot from a nominal obstacle boundary:
+        r_s + chance buffer + ε-shadow (used to place the detour vertices of appendix C)."""
+        sigma = float(np.sqrt(np.linalg.eigvalsh(self.robot_cov).max()))
+        shadow = float(self.obstacles.shadow_radius.max(initial=0.0)) * float(np.sqrt(np.linalg.eigvalsh(obstacle_cov).max()))
+        return self.radius + self.quantile * sigma + (shadow if np.isfinite(shadow) else 0.0)
+
 
 def method_setup(spec: Spec) -> MethodSetup:
     """Cell ingredients of ``spec.method`` (see module docstring)."""
@@ -87,7 +94,7 @@ def run(spec: Spec, seed=None, progress: bool = False) -> Trace:
     radius = np.full(n, setup.radius)
     deadlock = DeadlockParams(**spec.deadlock.model_dump())
     state = ControllerState.initial(n, deadlock.window)
-    grown = grown_obstacle_vertices(spec, spec.robots.radius)
+    grown = grown_obstacle_vertices(spec, 1.05 * setup.obstacle_clearance(spec.workspace.obstacle_covariance()))
     record_cells = spec.record_cells if spec.record_cells is not None else n <= RECORD_CELLS_MAX_ROBOTS
 
     pos = np.empty((spec.max_steps + 1, n, 2))

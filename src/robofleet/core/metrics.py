@@ -11,6 +11,10 @@ import numpy as np
 from . import geometry
 from .workspace import Workspace
 
+CONTACT_TOL = 1e-7
+"""Metres of overlap below which touching discs do not count as a collision: the models
+allow ``‖p_i − p_j‖ = 2 r`` exactly, which floating point may land a hair below."""
+
 
 def pair_contacts(positions: np.ndarray, radius: float) -> tuple[np.ndarray, np.ndarray]:
     """Robot–robot contacts over a run.
@@ -18,7 +22,7 @@ def pair_contacts(positions: np.ndarray, radius: float) -> tuple[np.ndarray, np.
     Parameters
     ----------
     positions: ``(T, N, d)`` true positions.
-    radius: robot radius; robots i and j collide at step t when ``‖p_i − p_j‖ < 2 r``.
+    radius: robot radius; robots i and j collide at step t when ``‖p_i − p_j‖ < 2 r − CONTACT_TOL``.
 
     Returns
     -------
@@ -28,19 +32,19 @@ def pair_contacts(positions: np.ndarray, radius: float) -> tuple[np.ndarray, np.
     rows, mins = [], np.full(len(positions), np.inf)
     for t, pts in enumerate(positions):
         mins[t] = geometry.nearest_neighbour_distance(pts).min(initial=np.inf)
-        if mins[t] < 2 * radius:
-            pairs = geometry.close_pairs(pts, 2 * radius)
+        if mins[t] < 2 * radius - CONTACT_TOL:
+            pairs = geometry.close_pairs(pts, 2 * radius - CONTACT_TOL)
             rows.append(np.column_stack([np.full(len(pairs), t), pairs]))
     contacts = np.concatenate(rows) if rows else np.empty((0, 3), dtype=np.intp)
     return contacts.astype(np.intp), mins
 
 
 def obstacle_contacts(positions: np.ndarray, radius: float, workspace: Workspace) -> tuple[np.ndarray, np.ndarray]:
-    """Robot–obstacle contacts: ``(step, robot)`` rows with clearance ``< r``, and the per-step minimum distance."""
+    """Robot–obstacle contacts: ``(step, robot)`` rows with clearance ``< r − CONTACT_TOL``, and the per-step minimum distance."""
     if not workspace.obstacles:
         return np.empty((0, 2), dtype=np.intp), np.full(len(positions), np.inf)
     dist = workspace.obstacle_distance(positions)
-    hits = np.argwhere(dist < radius)
+    hits = np.argwhere(dist < radius - CONTACT_TOL)
     return hits.astype(np.intp), dist.min(axis=-1)
 
 
