@@ -126,7 +126,7 @@ def frame_table(frame, title: str, leading: int = 0) -> Table:
     note = "" if len(shown) == len(columns) else f" ({len(shown)} of {len(columns)} columns; all in the store)"
     table = Table(title=title + note)
     for column in shown:
-        table.add_column(str(column), justify="right")
+        table.add_column(str(column), justify="right", overflow="fold")
     for row in frame[shown].itertuples(index=False):
         table.add_row(*(format_value(v) for v in row))
     return table

@@ -105,33 +105,50 @@ def run_serial(fn: TaskFn, tasks: list[dict]) -> Iterator[tuple[dict, Outcome]]:
 def run_processes(fn: TaskFn, tasks: list[dict], workers: int) -> Iterator[tuple[dict, Outcome]]:
     """Tasks on a local :class:`~concurrent.futures.ProcessPoolExecutor`.
 
-    ``fn`` must be a module-level function (workers receive it by reference). A worker
-    that dies (e.g. killed by the OS) turns its task, and the tasks already queued on the
-    broken pool, into failure rows (retried on the next run); the remaining tasks go to a
-    fresh pool.
+    ``fn`` must be a module-level function (workers receive it by reference). The pool
+    starts and the first tasks are submitted before this returns, so worker processes are
+    created before a progress bar starts its thread. A worker that dies (e.g. killed by
+    the OS) turns its task, and the tasks already queued on the broken pool, into failure
+    rows (retried on the next run); the remaining tasks go to a fresh pool.
     """
-    pending = deque(tasks)
-    window = workers * WINDOW_PER_WORKER
-    pool = ProcessPoolExecutor(max_workers=workers)
-    in_flight: dict[Future, dict] = {}
-    try:
-        while pending or in_flight:
-            while pending and len(in_flight) < window:
-                task = pending.popleft()
-                try:
-                    future = pool.submit(call_task, fn, task)
-                except BrokenProcessPool:  # a worker died: go on with a fresh pool
-                    pool.shutdown(wait=False, cancel_futures=True)
-                    pool = ProcessPoolExecutor(max_workers=workers)
-                    future = pool.submit(call_task, fn, task)
-                in_flight[future] = task
-            done, _ = wait(in_flight, return_when=FIRST_COMPLETED)
-            for future in done:
-                task = in_flight.pop(future)
-                exc = future.exception()
-                yield task, (("error", one_line(exc)) if exc is not None else future.result())
-    finally:
-        pool.shutdown(wait=True, cancel_futures=True)
+    return ProcessRunner(fn, tasks, workers).results()
+
+
+class ProcessRunner:
+    """A bounded window of tasks in flight on a process pool (see :func:`run_processes`)."""
+
+    def __init__(self, fn: TaskFn, tasks: list[dict], workers: int):
+        self.fn, self.workers = fn, workers
+        self.pending = deque(tasks)
+        self.window = workers * WINDOW_PER_WORKER
+        self.in_flight: dict[Future, dict] = {}
+        self.pool = ProcessPoolExecutor(max_workers=workers)
+        self.fill()
+
+    def fill(self) -> None:
+        while self.pending and len(self.in_flight) < self.window:
+            task = self.pending.popleft()
+            try:
+                future = self.pool.submit(call_task, self.fn, task)
+            except BrokenProcessPool:  # a worker died: go on with a fresh pool
+                self.pool.shutdown(wait=False, cancel_futures=True)
+                self.pool = ProcessPoolExecutor(max_workers=self.workers)
+                future = self.pool.submit(call_task, self.fn, task)
+            self.in_flight[future] = task
+
+    def results(self) -> Iterator[tuple[dict, Outcome]]:
+        try:
+            while self.in_flight:
+                done, _ = wait(self.in_flight, return_when=FIRST_COMPLETED)
+                for future in done:
+                    task = self.in_flight.pop(future)
+                    exc = future.exception()
+                    if isinstance(exc, KeyboardInterrupt):  # Ctrl-C reached the workers too
+                        raise KeyboardInterrupt
+                    yield task, (("error", one_line(exc)) if exc is not None else future.result())
+                self.fill()
+        finally:
+            self.pool.shutdown(wait=True, cancel_futures=True)
 
 
 def import_distributed():
@@ -165,13 +182,20 @@ def dask_client(scheduler: str | None, workers: int | None):
 def run_dask(fn: TaskFn, tasks: list[dict], scheduler: str | None, workers: int | None) -> Iterator[tuple[dict, Outcome]]:
     """Tasks on a Dask distributed cluster; results come back here and are stored here.
 
-    Workers of an external cluster need robofleet (and the module defining ``fn``)
-    installed; they never touch the result store, so they need no shared file system.
+    Connects (or starts the ``LocalCluster``) before returning, so a wrong address fails
+    before any progress bar appears. Workers of an external cluster need robofleet (and
+    the module defining ``fn``) installed; they never touch the result store, so they
+    need no shared file system.
     """
     distributed = import_distributed()
     client, cluster = dask_client(scheduler, workers)
+    return dask_results(distributed, client, cluster, fn, tasks, workers)
+
+
+def dask_results(distributed, client, cluster, fn: TaskFn, tasks: list[dict], workers: int | None) -> Iterator[tuple[dict, Outcome]]:
+    """Submit a bounded window of tasks to ``client``; yield results as they complete."""
     try:
-        n_workers = max(1, len(client.scheduler_info().get("workers", {})) or (workers or default_workers()))
+        n_workers = len(client.scheduler_info().get("workers", {})) or workers or default_workers()
         window = n_workers * WINDOW_PER_WORKER
         pending = deque(tasks)
         in_flight: dict[Any, dict] = {}
