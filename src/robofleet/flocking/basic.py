@@ -1,0 +1,229 @@
+"""Algorithm 1, the basic flocking algorithm (Sec. 4 of Gervasi & Prencipe, TR-01-24).
+
+Line numbers below refer to the listing of Algorithm 1 in the paper.
+
+* Line 1: B := barycenter of the followers (the observer included; the leader excluded,
+  as the listing says ``Baricenter(Followers)``).
+* Line 2: Y := the line through L and B, oriented B → L. When L = B (within
+  ``axis_tolerance``) the follower waits (footnote 3): it moves to its own position.
+* Lines 3-5: S_0, S_1, S_2 = followers on Y (``|signed distance| ≤ axis_tolerance``),
+  on its left, on its right, in the observer's local sense of left.
+* Line 6: F := Final_Positions(ℙ, L, Y): ℙ rotated so that its axis B_P → L lies along
+  B → L, translated onto L. Line 7: B_F its barycenter. Lines 8-10: F_0, F_1, F_2. The
+  side of a slot is decided in pattern coordinates (a proper rotation keeps sides), so
+  it is exact.
+* Lines 11-14: Sort: decreasing distance from L, then decreasing distance from B (B_F
+  for slots). Last tie-break (the paper leaves it open): for slots the pattern index;
+  for robots the observer's local coordinates (x, then y) — only reached on exact ties,
+  which have probability zero for generic positions.
+* Lines 15-38: the case analysis (ranks, the set H of line 21, the ``|S_1| ≤ |S_2|``
+  rule of line 35). Where an index expression of the listing leaves ``1..|F_j|`` (this
+  happens only when ``|S_0| > |F_0|``, e.g. line 36 with ``|S_1| = 0``), it is clamped
+  into range; an empty F_j falls back to F_0 then to the other side. Both are our
+  documented completions of the listing.
+
+The Compute step (:meth:`BasicAlgorithm.decide`) sees only the local snapshot and the
+pattern. Per call the cost is O(m log m) for m followers (sorting), all vectorized.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import ClassVar
+
+import numpy as np
+
+from .model import Decision, FrameAgreement, Snapshot, wait_decision
+from .patterns import Pattern
+
+
+@dataclass(frozen=True)
+class View:
+    """The quantities of lines 1-14 as one follower computes them (local frame).
+
+    ``order[j]`` lists follower indices of S_j sorted by :meth:`BasicAlgorithm.robot_keys`
+    (index 0 is the observer); ``slots[j]`` lists pattern indices of F_j sorted likewise.
+    """
+
+    followers: np.ndarray
+    leader: np.ndarray
+    barycenter: np.ndarray
+    y_axis: np.ndarray          # unit direction of Y (B → L in Algorithm 1)
+    lateral: np.ndarray         # signed distance of each follower to Y, > 0 on the left
+    side: np.ndarray            # 0 on Y, 1 left (S_1), 2 right (S_2)
+    order: tuple[np.ndarray, np.ndarray, np.ndarray]
+    slot_points: np.ndarray     # (m, 2) slot positions in the local frame, indexed by pattern index
+    slots: tuple[np.ndarray, np.ndarray, np.ndarray]
+    robot_keys: tuple[np.ndarray, ...] = field(repr=False, default=())
+
+    @property
+    def my_side(self) -> int:
+        return int(self.side[0])
+
+    @property
+    def my_rank(self) -> int:
+        """1-based rank k of the observer in its S_j (``Rank(me, S_j)``)."""
+        return int(np.flatnonzero(self.order[self.my_side] == 0)[0]) + 1
+
+
+def sort_descending(keys: tuple[np.ndarray, ...]) -> np.ndarray:
+    """Indices sorting lexicographically by ``keys`` (primary first), each decreasing."""
+    if len(keys[0]) == 0:
+        return np.empty(0, dtype=np.intp)
+    return np.lexsort(tuple(-k for k in reversed(keys)))
+
+
+def side_labels(lateral: np.ndarray, tolerance: float) -> np.ndarray:
+    """0 on the axis (``|lateral| ≤ tolerance``), 1 on its left, 2 on its right."""
+    return np.where(np.abs(lateral) <= tolerance, 0, np.where(lateral > 0, 1, 2))
+
+
+@dataclass(frozen=True)
+class BasicAlgorithm:
+    """Algorithm 1 (Sec. 4): oblivious, deterministic, no agreement on local frames.
+
+    Parameters
+    ----------
+    axis_tolerance:
+        Distance (in the common unit) within which a robot counts as lying on Y (S_0)
+        and within which L = B counts as the tie of footnote 3.
+    """
+
+    axis_tolerance: float = 1e-6
+
+    name: ClassVar[str] = "basic"
+    frames: ClassVar[FrameAgreement] = "none"
+    needs_heading: ClassVar[bool] = False
+    needs_memory: ClassVar[bool] = False
+    path_points: ClassVar[int] = 1
+
+    # ---- Compute --------------------------------------------------------------------
+    def decide(self, snapshot: Snapshot, pattern: Pattern, rng: np.random.Generator | None = None) -> Decision:
+        """One Compute step (lines 1-38) from the local ``snapshot``; returns the Move."""
+        axis = self.y_axis(snapshot)
+        if axis is None:
+            return wait_decision(self.remember(snapshot))
+        pattern_points = self.oriented_pattern(snapshot, pattern, axis, rng)
+        if isinstance(pattern_points, Decision):
+            return pattern_points
+        view = self.view(snapshot, pattern, pattern_points, axis)
+        slot = self.choose_slot(view, rng)
+        path = self.plan_path(view, view.slot_points[slot])
+        return Decision(path, int(slot), self.remember(snapshot))
+
+    # ---- lines 1-2 ------------------------------------------------------------------
+    def y_axis(self, snapshot: Snapshot) -> np.ndarray | None:
+        """Unit vector of Y = B → L (line 2), ``None`` for the L = B tie (footnote 3)."""
+        to_leader = snapshot.leader - snapshot.followers.mean(axis=0)
+        norm = np.linalg.norm(to_leader)
+        return None if norm <= self.axis_tolerance else to_leader / norm
+
+    def pattern_axis(self, pattern: Pattern) -> np.ndarray:
+        """The pattern direction that Final_Positions aligns with Y: B_P → L."""
+        return pattern.axis
+
+    def oriented_pattern(self, snapshot: Snapshot, pattern: Pattern, axis: np.ndarray, rng) -> np.ndarray | Decision:
+        """Pattern points to place (the randomized variant may mirror them here)."""
+        return pattern.points
+
+    def remember(self, snapshot: Snapshot):
+        """What to store for the next cycle (nothing: the algorithm is oblivious)."""
+        return None
+
+    # ---- lines 3-14 -----------------------------------------------------------------
+    def view(self, snapshot: Snapshot, pattern: Pattern, pattern_points: np.ndarray, axis: np.ndarray) -> View:
+        """Lines 1-14: B, Y, S_j, F, B_F, F_j and the sorted orders."""
+        followers, leader = snapshot.followers, snapshot.leader
+        bary = followers.mean(axis=0)
+        normal = np.array([-axis[1], axis[0]])
+        lateral = (followers - leader) @ normal
+        side = side_labels(lateral, self.axis_tolerance)
+        keys = self.robot_keys(followers, leader, bary, lateral)
+        order = sort_descending(keys)
+        robot_order = tuple(order[side[order] == j] for j in range(3))
+
+        pax = self.pattern_axis(pattern)
+        rot = _rotation(pax, axis)
+        slot_points = pattern_points @ rot.T + leader                                   # line 6
+        p_lateral = pax[0] * pattern_points[:, 1] - pax[1] * pattern_points[:, 0]
+        p_side = side_labels(p_lateral, pattern.scale_tolerance)                      # lines 8-10
+        p_keys = self.slot_keys(pattern_points, pattern_points.mean(axis=0), p_lateral)
+        p_order = sort_descending(p_keys)                                               # line 12
+        slot_order = tuple(p_order[p_side[p_order] == j] for j in range(3))
+        return View(followers, leader, bary, axis, lateral, side, robot_order, slot_points, slot_order, keys)
+
+    def robot_keys(self, followers: np.ndarray, leader: np.ndarray, bary: np.ndarray, lateral: np.ndarray) -> tuple[np.ndarray, ...]:
+        """Sort keys of line 13, primary first: dist(L, ·), dist(B, ·), then local x, y."""
+        return (np.linalg.norm(followers - leader, axis=1), np.linalg.norm(followers - bary, axis=1), *self.tie_keys(followers, lateral))
+
+    def tie_keys(self, followers: np.ndarray, lateral: np.ndarray) -> tuple[np.ndarray, ...]:
+        """Last-resort tie-break: local coordinates (frame dependent; exact ties only)."""
+        return (followers[:, 0], followers[:, 1])
+
+    def slot_keys(self, points: np.ndarray, bary: np.ndarray, lateral: np.ndarray) -> tuple[np.ndarray, ...]:
+        """Sort keys of line 12 in pattern coordinates (L at the origin): dist(L, ·), dist(B_F, ·), index."""
+        return (np.linalg.norm(points, axis=1), np.linalg.norm(points - bary, axis=1), -np.arange(len(points), dtype=float))
+
+    # ---- lines 15-38 ----------------------------------------------------------------
+    def choose_slot(self, view: View, rng) -> int:
+        """The case analysis of lines 15-38; returns the pattern index of the target slot."""
+        if view.my_side == 0:
+            return self._case_s0(view, rng)
+        return self._case_side(view, view.my_side, rng)
+
+    def _case_side(self, view: View, s: int, rng) -> int:
+        """Lines 16-28 for me ∈ S_s (s = 1; s = 2 is the symmetric case of line 30)."""
+        o = 3 - s
+        k = view.my_rank
+        n_fs, n_fo, n_f0 = len(view.slots[s]), len(view.slots[o]), len(view.slots[0])
+        n_s0 = len(view.order[0])
+        if k <= n_fs:                                                                  # line 18
+            return self._pick(view, s, k, s)
+        if k <= n_fs + n_f0 - n_s0:                                                    # line 20
+            k_prime = self.rank_in_h(view, rng)                                        # lines 21-24
+            return self._pick(view, 0, k_prime + n_s0, s)                              # line 25
+        return self._pick(view, o, n_fo - (k - n_fs - n_f0 + n_s0) + 1, s)             # line 28
+
+    def _case_s0(self, view: View, rng) -> int:
+        """Lines 31-38 for me ∈ S_0."""
+        k = view.my_rank
+        n_f0 = len(view.slots[0])
+        if k <= n_f0:                                                                  # line 34
+            return self._pick(view, 0, k, 1)
+        side = self.s0_side(view, rng)                                                 # line 35
+        return self._pick(view, side, len(view.slots[side]) - len(view.order[side]) + (k - n_f0), side)
+
+    def s0_side(self, view: View, rng) -> int:
+        """Line 35: the side with fewer robots; F_1 when ``|S_1| = |S_2|``."""
+        return 1 if len(view.order[1]) <= len(view.order[2]) else 2
+
+    def h_set(self, view: View) -> np.ndarray:
+        """Line 21-23: robots of S_1 ranked beyond |F_1| and of S_2 beyond |F_2|, sorted."""
+        extra = [view.order[j][len(view.slots[j]):] for j in (1, 2)]
+        members = np.concatenate(extra)
+        keys = tuple(k[members] for k in view.robot_keys)
+        return members[sort_descending(keys)]
+
+    def rank_in_h(self, view: View, rng) -> int:
+        """Line 24: k' = Rank(me, H) (1-based)."""
+        return int(np.flatnonzero(self.h_set(view) == 0)[0]) + 1
+
+    @staticmethod
+    def _pick(view: View, j: int, index: int, own_side: int) -> int:
+        """The ``index``-th (1-based) slot of F_j, clamped; empty F_j falls back (module doc)."""
+        for jj in (j, 0, own_side, 3 - own_side):
+            if len(view.slots[jj]):
+                return int(view.slots[jj][min(max(index, 1), len(view.slots[jj])) - 1])
+        raise AssertionError("a pattern always has at least one slot")
+
+    # ---- Move -----------------------------------------------------------------------
+    def plan_path(self, view: View, target: np.ndarray) -> np.ndarray:
+        """``Move(p)``: a straight move towards ``p``."""
+        return target[None, :].copy()
+
+
+def _rotation(src: np.ndarray, dst: np.ndarray) -> np.ndarray:
+    """Proper rotation taking unit ``src`` onto unit ``dst``."""
+    c = src[0] * dst[0] + src[1] * dst[1]
+    s = src[0] * dst[1] - src[1] * dst[0]
+    return np.array([[c, -s], [s, c]])

@@ -1,0 +1,239 @@
+"""Look-Compute-Move schedulers: FSYNC, SSYNC and ASYNC (Sec. 2, assumptions A1-A3).
+
+One event-driven engine runs all three; they differ only in *who looks when*:
+
+* **FSYNC**: every follower looks at t = 0, 1, 2, ... and its Move lasts the round.
+* **SSYNC**: at each integer time a random non-empty subset looks (each follower
+  independently with ``activation_probability``, redrawn while empty); moves finish
+  within the round.
+* **ASYNC** (the paper's model): every follower runs its own cycles. A cycle lasts
+  τ ~ U(``cycle_min``, ``cycle_max``): finite and bounded below (A1). Look and Compute take
+  no time (A3): the Move starts at the Look instant and the next Look happens when the
+  cycle ends. Followers are observed while they move (positions are interpolated along
+  their paths at the Look time). A heap of next-Look times orders the events.
+
+Moves (A2, non-rigid): in a cycle of length τ a follower of speed v_f travels along its
+path at speed v_f for ℓ = min(|path|, max(δ_f, η v_f τ)), η ~ U(``rigidity``, 1), then
+stands still until the cycle ends; so it always covers at least min(δ_f, |path|), reaches
+destinations closer than δ_f, and the distance covered is unpredictable when
+``rigidity < 1``. ``rigidity = 1`` gives rigid moves (destination reached whenever
+v_f τ allows).
+
+The algorithm only ever receives :class:`~robofleet.flocking.model.Snapshot` s built by
+:func:`~robofleet.flocking.model.look` and returns local paths, turned back into world
+coordinates here. Per Look the engine costs O(m) vectorized work plus the algorithm.
+"""
+
+from __future__ import annotations
+
+import heapq
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+from pydantic import Field, model_validator
+
+from ..core.errors import ScenarioError
+from ..core.progress import tracked
+from ..scenarios.base import SpecModel
+from .leader import LeaderCourse
+from .model import Algorithm, LocalFrames, look
+from .patterns import Pattern
+
+
+class SchedulerSpec(SpecModel):
+    """Scheduler parameters (time unit = one leader move, as in Sec. 4.2)."""
+
+    kind: Literal["fsync", "ssync", "async"] = "async"
+    activation_probability: float = Field(default=0.5, gt=0.0, le=1.0)
+    cycle_min: float = Field(default=0.5, gt=0.0)
+    cycle_max: float = Field(default=1.5, gt=0.0)
+    rigidity: float = Field(default=1.0, gt=0.0, le=1.0)
+    min_move: float = Field(default=0.01, gt=0.0)
+
+    @model_validator(mode="after")
+    def _bounds(self):
+        if self.cycle_max < self.cycle_min:
+            raise ScenarioError("cycle_max", f"a value >= cycle_min ({self.cycle_min})", self.cycle_max)
+        return self
+
+    @property
+    def move_time_max(self) -> float:
+        """Longest possible Move (max_j τ_f^M(j) of Sec. 3.2)."""
+        return self.cycle_max if self.kind == "async" else 1.0
+
+    @property
+    def move_time_min(self) -> float:
+        return self.cycle_min if self.kind == "async" else 1.0
+
+
+@dataclass
+class CycleLog:
+    """One row per Look-Compute-Move cycle (arrays of equal length, time order)."""
+
+    robot: np.ndarray
+    t_look: np.ndarray
+    t_end: np.ndarray
+    start: np.ndarray        # (C, 2) world position at the Look
+    destination: np.ndarray  # (C, 2) world destination computed
+    end: np.ndarray          # (C, 2) where the Move stopped
+    travel: np.ndarray       # ℓ, distance covered along the path
+    path_length: np.ndarray  # length of the planned path
+    slot: np.ndarray         # pattern index chosen (-1 = wait)
+    seen_moving: np.ndarray  # other followers observed while moving at that Look
+
+    def __len__(self) -> int:
+        return len(self.robot)
+
+    def as_events(self, sample_dt: float) -> list[dict]:
+        """The log as trace events (``kind: "cycle"``, ``robot`` = follower index 1..m)."""
+        out = []
+        for c in range(len(self)):
+            out.append({
+                "step": int(self.t_look[c] // sample_dt), "kind": "cycle", "robot": int(self.robot[c]) + 1,
+                "t_look": float(self.t_look[c]), "t_end": float(self.t_end[c]),
+                "start": self.start[c].tolist(), "destination": self.destination[c].tolist(), "end": self.end[c].tolist(),
+                "travel": float(self.travel[c]), "path_length": float(self.path_length[c]), "slot": int(self.slot[c]),
+                "seen_moving": int(self.seen_moving[c]),
+            })
+        return out
+
+
+@dataclass
+class RunResult:
+    """Sampled true positions (leader at index 0), leader headings and the cycle log."""
+
+    times: np.ndarray
+    positions: np.ndarray
+    headings: np.ndarray
+    log: CycleLog
+    looks: int
+
+
+class _Motion:
+    """Current Move of every follower: padded world paths, start time, speed, length ℓ."""
+
+    def __init__(self, starts: np.ndarray, speeds: np.ndarray, points: int):
+        m = len(starts)
+        self.path = np.repeat(starts[:, None, :], points + 1, axis=1)
+        self.cum = np.zeros((m, points + 1))
+        self.t0 = np.zeros(m)
+        self.travel = np.zeros(m)
+        self.speed = speeds
+        self.rows = np.arange(m)
+
+    def positions(self, t: float) -> np.ndarray:
+        """Every follower's position at time ``t`` (vectorized over followers)."""
+        s = np.clip(self.speed * (t - self.t0), 0.0, self.travel)
+        seg = np.count_nonzero(self.cum[:, 1:-1] < s[:, None], axis=1)
+        a, b = self.path[self.rows, seg], self.path[self.rows, seg + 1]
+        c0, c1 = self.cum[self.rows, seg], self.cum[self.rows, seg + 1]
+        frac = np.where(c1 > c0, (s - c0) / np.where(c1 > c0, c1 - c0, 1.0), 0.0)
+        return a + frac[:, None] * (b - a)
+
+    def position_of(self, i: int, t: float) -> np.ndarray:
+        """Position of follower ``i`` at time ``t``."""
+        s = min(max(self.speed[i] * (t - self.t0[i]), 0.0), self.travel[i])
+        cum, path = self.cum[i], self.path[i]
+        seg = min(int(np.searchsorted(cum, s, side="left")), len(cum) - 1)
+        seg = max(seg, 1)
+        c0, c1 = cum[seg - 1], cum[seg]
+        frac = (s - c0) / (c1 - c0) if c1 > c0 else 0.0
+        return path[seg - 1] + frac * (path[seg] - path[seg - 1])
+
+    def moving(self, t: float) -> np.ndarray:
+        return (self.t0 < t) & (self.speed * (t - self.t0) < self.travel)
+
+    def set(self, i: int, world_path: np.ndarray, t: float, travel: float) -> None:
+        k = self.path.shape[1] - 1
+        pad = np.concatenate([world_path, np.repeat(world_path[-1:], k + 1 - len(world_path), axis=0)])
+        self.path[i] = pad
+        self.cum[i] = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(pad, axis=0), axis=1))])
+        self.t0[i] = t
+        self.travel[i] = travel
+
+
+def _look_batches(spec: SchedulerSpec, m: int, duration: float, rng: np.random.Generator):
+    """Yield ``(t, robots)``: who looks when. ASYNC uses a heap of next-Look times."""
+    if spec.kind in ("fsync", "ssync"):
+        for t in range(int(np.floor(duration)) + 1):
+            if spec.kind == "fsync":
+                yield float(t), np.arange(m), np.ones(m)
+                continue
+            active = np.zeros(m, dtype=bool)
+            while not active.any():
+                active = rng.random(m) < spec.activation_probability
+            yield float(t), np.flatnonzero(active), np.ones(active.sum())
+        return
+    heap = [(float(t), i) for i, t in enumerate(rng.uniform(0.0, spec.cycle_min, size=m))]
+    heapq.heapify(heap)
+    while heap and heap[0][0] <= duration:
+        t, i = heapq.heappop(heap)
+        tau = float(rng.uniform(spec.cycle_min, spec.cycle_max))
+        heapq.heappush(heap, (t + tau, i))
+        yield t, np.array([i]), np.array([tau])
+
+
+def run(algorithm: Algorithm, pattern: Pattern, frames: LocalFrames, starts: np.ndarray, speeds: np.ndarray,
+        course: LeaderCourse, spec: SchedulerSpec, *, duration: float, sample_dt: float = 1.0,
+        scheduler_rng: np.random.Generator, algorithm_rng: np.random.Generator, progress: bool = False) -> RunResult:
+    """Simulate followers running ``algorithm`` under scheduler ``spec`` behind ``course``.
+
+    Parameters
+    ----------
+    starts: ``(m, 2)`` initial world positions of the followers; ``speeds``: ``(m,)`` v_f > 0.
+    duration: simulated time; samples are taken every ``sample_dt``.
+    scheduler_rng / algorithm_rng: independent seeded streams (activation and move
+        lengths / the algorithm's own random choices).
+
+    Returns the sampled positions ``(T, 1 + m, 2)`` (leader at index 0) and the cycle log.
+    """
+    starts = np.asarray(starts, dtype=float)
+    speeds = np.asarray(speeds, dtype=float)
+    m = len(starts)
+    if spec.min_move > spec.rigidity * speeds.min() * spec.move_time_min:
+        raise ScenarioError("scheduler.min_move", f"δ_f <= rigidity · min speed · shortest Move = {spec.rigidity * speeds.min() * spec.move_time_min:.4g}", spec.min_move)
+    motion = _Motion(starts, speeds, getattr(algorithm, "path_points", 1))
+    memory = [None] * m
+    sample_times = np.arange(0.0, duration + 1e-9, sample_dt)
+    samples = np.empty((len(sample_times), m, 2))
+    rows: dict[str, list] = {k: [] for k in CycleLog.__dataclass_fields__}
+    next_sample, looks = 0, 0
+    with tracked(len(sample_times), "flocking", progress) as advance:
+        for t, robots, taus in _look_batches(spec, m, duration, scheduler_rng):
+            while next_sample < len(sample_times) and sample_times[next_sample] <= t:
+                samples[next_sample] = motion.positions(sample_times[next_sample])
+                next_sample += 1
+                advance()
+            followers = motion.positions(t)
+            leader = course.position(t)
+            heading = np.array([np.cos(course.heading(t)), np.sin(course.heading(t))]) if algorithm.needs_heading else None
+            moving = motion.moving(t)
+            plans = []
+            for i, tau in zip(robots, taus):
+                snap = look(frames, i, leader, followers, heading=heading,
+                            odometry_origin=starts[i] if algorithm.needs_memory else None, memory=memory[i])
+                decision = algorithm.decide(snap, pattern, algorithm_rng)
+                memory[i] = decision.memory
+                world = np.concatenate([followers[i][None], frames.to_world(i, decision.path, followers[i])])
+                plans.append((i, tau, world, decision.slot))
+            for i, tau, world, slot in plans:
+                length = float(np.linalg.norm(np.diff(world, axis=0), axis=1).sum())
+                eta = scheduler_rng.uniform(spec.rigidity, 1.0) if spec.rigidity < 1.0 else 1.0
+                travel = min(length, max(spec.min_move, eta * speeds[i] * tau))
+                motion.set(i, world, t, travel)
+                rows["robot"].append(i); rows["t_look"].append(t); rows["t_end"].append(t + tau)
+                rows["start"].append(followers[i]); rows["destination"].append(world[-1])
+                rows["end"].append(motion.position_of(i, t + tau)); rows["travel"].append(travel)
+                rows["path_length"].append(length); rows["slot"].append(slot)
+                rows["seen_moving"].append(int(np.count_nonzero(np.delete(moving, i))))
+            looks += len(robots)
+        while next_sample < len(sample_times):
+            samples[next_sample] = motion.positions(sample_times[next_sample])
+            next_sample += 1
+            advance()
+    ints, vecs = ("robot", "slot", "seen_moving"), ("start", "destination", "end")
+    log = CycleLog(**{k: np.asarray(v, dtype=float).reshape(-1, 2) if k in vecs else np.asarray(v, dtype=int if k in ints else float)
+                      for k, v in rows.items()})
+    positions = np.concatenate([course.position(sample_times)[:, None, :], samples], axis=1)
+    return RunResult(sample_times, positions, course.heading(sample_times), log, looks)
