@@ -1,0 +1,320 @@
+"""B-UAVC receding-horizon control (MPC) for any robot model (paper 003, Sec. 5.4 and
+appendix C; ``notes/buavc.md`` "Controllers").
+
+Each control step robot ``i`` solves
+
+    min_{x, u}  ‖g − p_N‖² / max(‖g − p_0‖², 1)  +  w_u/N · Σ_k ‖u_k‖²
+    s.t.        x_0 = x̂,   x_{k+1} = f(x_k, u_k)            (the model's discrete step)
+                A p_k ≤ b,   k = 1 … N                      (every predicted position in the
+                                                             current B-UAVC)
+                u_lo ≤ u_k ≤ u_hi (and the model's norm limits)
+
+and applies ``u_0``. The problem is built **once** per (model, horizon, max constraints):
+the cell enters as parameters ``A (M × d)``, ``b (M)``; unused rows are padded with the
+always-true ``0·p ≤ 1``. Linear models (single and double integrator) are solved as a QP
+(qpOASES through casadi's ``qpsol``), nonlinear ones (unicycle, quadrotor) as an NLP with
+IPOPT (``nlpsol``), warm-started from the previous plan shifted by one step.
+
+When the solver fails or its plan leaves the cell, the robot applies its model's safe
+fallback (zero input; for the double integrator the brake of :mod:`.braking`; for the
+quadrotor the level-attitude, zero-climb input).
+
+Deadlock (appendix C): when a robot that has not arrived moves less than
+``Δp_min`` in total over the last ``n_dead`` steps, its goal is rotated clockwise by
+90° about the robot, ``g_tmp = R_z(−90°)(g − p̂) + p̂``, for ``recover_steps`` steps.
+
+The input weight ``w_u`` (default 1e-3) is our addition: the terminal cost alone leaves
+the input sequence undetermined; the small weight selects the least-effort plan.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import sys
+from dataclasses import dataclass
+from typing import Callable, Literal
+
+import casadi as ca
+import numpy as np
+from pydantic import Field
+
+from ..core.errors import ConfigError
+from ..dynamics import double_integrator as di
+from ..dynamics import quadrotor as quad
+from ..dynamics import unicycle as uni
+from ..scenarios.base import SpecModel
+from .braking import braking_control
+
+ModelName = Literal["single_integrator", "double_integrator", "unicycle", "quadrotor"]
+MODEL_NAMES = ("single_integrator", "double_integrator", "unicycle", "quadrotor")
+_POLYGON_SIDES = 8
+_CELL_TOL = 1e-6
+QP_SOLVER = "qpoases"
+QP_OPTIONS = {
+    "qrqp": {"print_iter": False, "print_header": False, "print_info": False, "error_on_fail": False},
+    "qpoases": {"printLevel": "none", "error_on_fail": False},
+    "osqp": {"osqp": {"verbose": False, "eps_abs": 1e-7, "eps_rel": 1e-7}, "error_on_fail": False},
+}
+
+
+class MPCConfig(SpecModel):
+    """Parameters of the B-UAVC MPC."""
+
+    horizon: int = Field(10, gt=0, description="N, number of predicted steps")
+    max_constraints: int = Field(24, gt=0, description="cell rows the problem is built for")
+    input_weight: float = Field(1e-3, ge=0, description="w_u")
+    deadlock_steps: int = Field(20, gt=0, description="n_dead")
+    deadlock_progress: float = Field(0.05, ge=0, description="Δp_min [m] over n_dead steps")
+    recover_steps: int = Field(10, gt=0, description="steps with the rotated goal")
+    max_iter: int = Field(50, gt=0, description="IPOPT iteration cap (nonlinear models)")
+
+
+class SingleIntegratorParams(SpecModel):
+    """Speed limit of a single integrator in the MPC."""
+
+    v_max: float = Field(gt=0)
+
+
+@dataclass(frozen=True)
+class ModelAdapter:
+    """What the MPC needs to know about a robot model.
+
+    ``polytope_limits`` are ``(vector part, index slice, limit)``: ``‖·‖ ≤ limit`` kept with an
+    inscribed regular ``8``-gon (linear, so linear models stay QPs).
+    """
+
+    name: str
+    nx: int
+    nu: int
+    dim: int
+    linear: bool
+    step: Callable  # symbolic (x, u) -> x⁺
+    u_lo: np.ndarray
+    u_hi: np.ndarray
+    norm_limits: tuple  # ((kind "u"|"x", slice, limit), ...)
+    fallback: Callable  # (states (n, nx)) -> controls (n, nu)
+
+
+def model_adapter(name: str, params, dim: int, dt: float) -> ModelAdapter:
+    """The :class:`ModelAdapter` of model ``name`` (one of :data:`MODEL_NAMES`)."""
+    inf = np.inf
+    if name == "single_integrator":
+        return ModelAdapter(name, dim, dim, dim, True, lambda x, u: x + u * dt, np.full(dim, -inf), np.full(dim, inf),
+                            (("u", slice(0, dim), params.v_max),), lambda s: np.zeros((len(s), dim)))
+    if name == "double_integrator":
+        return ModelAdapter(name, 2 * dim, dim, dim, True, lambda x, u: di.symbolic_step(x, u, dt, params, dim), np.full(dim, -inf), np.full(dim, inf),
+                            (("u", slice(0, dim), params.a_max), ("x", slice(dim, 2 * dim), params.v_max)),
+                            lambda s: braking_control(s[:, dim:], params.a_max, dt))
+    if name == "unicycle":
+        hi = np.array([params.v_max, params.omega_max])
+        return ModelAdapter(name, 3, 2, 2, False, lambda x, u: uni.symbolic_step(x, u, dt, params), -hi, hi, (), lambda s: np.zeros((len(s), 2)))
+    if name == "quadrotor":
+        lo, hi = params.control_bounds()
+        return ModelAdapter(name, 9, 4, 3, False, lambda x, u: quad.symbolic_step(x, u, dt, params), lo, hi, (), lambda s: quad.hover_control(len(s)))
+    raise ConfigError(f"model: expected one of {list(MODEL_NAMES)}, received {name!r}")
+
+
+def _polygon(limit: float, dim: int) -> tuple[np.ndarray, float]:
+    """Inscribed polytope of the ball ``‖w‖ ≤ limit``: normals and offset (2D: 8-gon; 3D: 8-gon in xy + |z| bound)."""
+    ang = 2 * np.pi * np.arange(_POLYGON_SIDES) / _POLYGON_SIDES
+    planar = np.stack([np.cos(ang), np.sin(ang)], -1)
+    if dim == 2:
+        return planar, limit * np.cos(np.pi / _POLYGON_SIDES)
+    rows = np.zeros((_POLYGON_SIDES + 2, dim))
+    rows[:_POLYGON_SIDES, :2] = planar * np.sqrt(2.0)  # |w_xy| ≤ ℓ/√2 ∧ |w_z| ≤ ℓ/√2 ⊂ ball
+    rows[_POLYGON_SIDES:, 2] = [np.sqrt(2.0), -np.sqrt(2.0)]
+    return rows, limit * np.cos(np.pi / _POLYGON_SIDES)
+
+
+class BuavcMPC:
+    """One robot model's B-UAVC MPC, built once and solved for each robot every step.
+
+    Parameters
+    ----------
+    model : one of :data:`MODEL_NAMES`
+    params : the model's parameter object (``SingleIntegratorParams``, ``DoubleIntegratorParams``, ...)
+    dim : workspace dimension of the positions (the unicycle is 2, the quadrotor 3)
+    dt : control period
+    config : :class:`MPCConfig`
+    n_robots : how many robots share this controller (each keeps its own warm start)
+    """
+
+    def __init__(self, model: str, params, *, dim: int, dt: float, config: MPCConfig, n_robots: int):
+        if model not in MODEL_NAMES:
+            raise ConfigError(f"model: expected one of {list(MODEL_NAMES)}, received {model!r}")
+        if config.horizon <= 0:
+            raise ConfigError(f"horizon: expected an integer > 0, received {config.horizon!r}")
+        self.model = model_adapter(model, params, dim, dt)
+        self.config = config
+        self.dt = dt
+        self.n_robots = n_robots
+        self._build()
+        N, m = config.horizon, self.model
+        self._warm = np.full((n_robots, self._nz), np.nan)
+        self._lam_g = np.zeros((n_robots, self._ng))
+        self._since_rotation = np.zeros(n_robots, np.int64)
+        self._rotation_left = np.zeros(n_robots, np.int64)
+        self._moves = np.zeros((config.deadlock_steps, n_robots))
+        self._last_pos = None
+        self.step_count = 0
+        self.deadlocks = np.zeros(n_robots, np.int64)
+        self.infeasible = np.zeros(n_robots, np.int64)
+        del N, m
+
+    # ------------------------------------------------------------------ problem build
+    def _build(self) -> None:
+        m, N, M = self.model, self.config.horizon, self.config.max_constraints
+        X = ca.SX.sym("X", m.nx, N + 1)
+        U = ca.SX.sym("U", m.nu, N)
+        P = ca.SX.sym("P", m.nx + m.dim + M * m.dim + M)
+        x0, goal = P[: m.nx], P[m.nx : m.nx + m.dim]
+        A = ca.reshape(P[m.nx + m.dim : m.nx + m.dim + M * m.dim], M, m.dim)
+        b = P[m.nx + m.dim + M * m.dim :]
+        pos = lambda x: x[: m.dim]  # noqa: E731 — positions lead every model's state
+        start = pos(x0)
+        scale = ca.fmax(ca.sumsqr(goal - start), 1.0)
+        cost = ca.sumsqr(goal - pos(X[:, N])) / scale + self.config.input_weight / N * ca.sumsqr(U)
+        eq = [X[:, 0] - x0] + [X[:, k + 1] - m.step(X[:, k], U[:, k]) for k in range(N)]
+        ineq = [ca.mtimes(A, pos(X[:, k])) - b for k in range(1, N + 1)]
+        for kind, sl, limit in m.norm_limits:
+            normals, offset = _polygon(limit, sl.stop - sl.start)
+            for k in range(N):
+                vec = U[sl, k] if kind == "u" else X[sl, k + 1]
+                ineq.append(ca.mtimes(ca.DM(normals), vec) - offset)
+        g = ca.vertcat(*eq, *ineq)
+        z = ca.vertcat(ca.vec(X), ca.vec(U))
+        n_eq = sum(e.numel() for e in eq)
+        self._nz, self._ng, self._n_eq = z.numel(), g.numel(), n_eq
+        self._lbg = np.concatenate([np.zeros(n_eq), np.full(self._ng - n_eq, -np.inf)])
+        self._ubg = np.zeros(self._ng)
+        self._lbz = np.concatenate([np.full(m.nx * (N + 1), -np.inf), np.tile(m.u_lo, N)])
+        self._ubz = np.concatenate([np.full(m.nx * (N + 1), np.inf), np.tile(m.u_hi, N)])
+        problem = {"x": z, "p": P, "f": cost, "g": g}
+        self._first_solve = True
+        if m.linear:
+            with quiet_stdout():  # qpOASES prints its licence banner on construction
+                self._solver = ca.qpsol("buavc_mpc", QP_SOLVER, problem, QP_OPTIONS[QP_SOLVER])
+        else:
+            self._solver = ca.nlpsol("buavc_mpc", "ipopt", problem, {
+                "print_time": False, "error_on_fail": False,
+                "ipopt": {"print_level": 0, "sb": "yes", "max_iter": self.config.max_iter, "tol": 1e-6,
+                          "acceptable_tol": 1e-4, "acceptable_iter": 3, "warm_start_init_point": "yes",
+                          "mu_init": 1e-2, "warm_start_bound_push": 1e-6, "warm_start_mult_bound_push": 1e-6},
+            })
+
+    # ------------------------------------------------------------------ per-step solve
+    def cell_parameters(self, A: np.ndarray, b: np.ndarray, valid: np.ndarray, position: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """One robot's cell as ``(M, d)``, ``(M,)`` parameters: its valid rows (the
+        ``max_constraints`` tightest at ``position`` if there are more), padded with ``0·p ≤ 1``."""
+        M, d = self.config.max_constraints, self.model.dim
+        rows = np.flatnonzero(valid)
+        if len(rows) > M:
+            slack = b[rows] - A[rows] @ position
+            rows = rows[np.argsort(slack)[:M]]
+        Ap = np.zeros((M, d))
+        bp = np.ones(M)
+        Ap[: len(rows)] = A[rows]
+        bp[: len(rows)] = b[rows]
+        return Ap, bp
+
+    def plan(self, robot: int, state: np.ndarray, goal: np.ndarray, A: np.ndarray, b: np.ndarray) -> tuple[np.ndarray | None, np.ndarray | None]:
+        """Solve robot ``robot``'s problem from ``state`` toward ``goal`` in the cell ``(A, b)``
+        (already padded to ``max_constraints``). Returns ``(u_0, predicted positions (N+1, d))``,
+        or ``(None, None)`` when the solver fails or its plan leaves the cell."""
+        m, N = self.model, self.config.horizon
+        p = np.concatenate([state, goal, A.T.ravel(), b])  # casadi reshape is column-major
+        z0 = self._initial_guess(robot, state)
+        with quiet_stdout() if self._first_solve else contextlib.nullcontext():  # and on first use
+            sol = self._solver(x0=z0, p=p, lbx=self._lbz, ubx=self._ubz, lbg=self._lbg, ubg=self._ubg, lam_g0=self._lam_g[robot])
+        self._first_solve = False
+        ok = self._solver.stats().get("success", False)
+        z = np.asarray(sol["x"]).ravel()
+        X = z[: m.nx * (N + 1)].reshape(N + 1, m.nx)
+        U = z[m.nx * (N + 1) :].reshape(N, m.nu)
+        positions = X[:, : m.dim]
+        inside = np.all(positions[1:] @ A.T <= b + _CELL_TOL)
+        if not (ok and inside and np.all(np.isfinite(z))):
+            self._warm[robot] = np.nan
+            self._lam_g[robot] = 0.0
+            return None, None
+        self._warm[robot] = z
+        self._lam_g[robot] = np.asarray(sol["lam_g"]).ravel()
+        return U[0], positions
+
+    def _initial_guess(self, robot: int, state: np.ndarray) -> np.ndarray:
+        """The previous plan shifted by one step (first solve: hold the current state, zero input)."""
+        m, N = self.model, self.config.horizon
+        prev = self._warm[robot]
+        if not np.all(np.isfinite(prev)):
+            return np.concatenate([np.tile(state, N + 1), np.zeros(m.nu * N)])
+        X = prev[: m.nx * (N + 1)].reshape(N + 1, m.nx)
+        U = prev[m.nx * (N + 1) :].reshape(N, m.nu)
+        X = np.vstack([state, X[2:], X[-1:]])
+        U = np.vstack([U[1:], U[-1:]])
+        return np.concatenate([X.ravel(), U.ravel()])
+
+    def control(self, states: np.ndarray, goals: np.ndarray, A: np.ndarray, b: np.ndarray, valid: np.ndarray, *, arrived: np.ndarray | None = None) -> tuple[np.ndarray, dict]:
+        """Controls ``(n, nu)`` for all robots of this model (one solve per robot).
+
+        ``states (n, nx)`` are the robots' state estimates, ``goals (n, d)``, cells
+        ``A (n, M', d)``, ``b (n, M')``, ``valid (n, M')``; ``arrived`` robots get the fallback.
+        Returns the controls and ``{"plans": (n, N+1, d) NaN where none, "fallback": (n,) bool,
+        "goals": the working goals}``.
+        """
+        m, N = self.model, self.config.horizon
+        n = len(states)
+        positions = states[:, : m.dim]
+        working = self._working_goals(positions, goals, arrived)
+        controls = m.fallback(states)
+        plans = np.full((n, N + 1, m.dim), np.nan)
+        fallback = np.ones(n, bool)
+        todo = np.ones(n, bool) if arrived is None else ~arrived
+        for i in np.flatnonzero(todo):
+            Ai, bi = self.cell_parameters(A[i], b[i], valid[i], positions[i])
+            u, plan = self.plan(i, states[i], working[i], Ai, bi)
+            if u is not None:
+                controls[i], plans[i], fallback[i] = u, plan, False
+        self.infeasible += fallback & todo
+        return controls, {"plans": plans, "fallback": fallback & todo, "goals": working}
+
+    def _working_goals(self, positions: np.ndarray, goals: np.ndarray, arrived) -> np.ndarray:
+        """Appendix C goal rotation, vectorized over robots."""
+        cfg = self.config
+        if self._last_pos is not None:
+            self._moves[self.step_count % cfg.deadlock_steps] = np.linalg.norm(positions - self._last_pos, axis=1)
+        self._last_pos = positions.copy()
+        self.step_count += 1
+        done = np.zeros(len(positions), bool) if arrived is None else arrived
+        self._since_rotation += 1
+        stuck = (self.step_count > cfg.deadlock_steps) & (self._moves.sum(axis=0) <= cfg.deadlock_progress) & ~done
+        stuck &= (self._rotation_left == 0) & (self._since_rotation > cfg.deadlock_steps)
+        self._rotation_left[stuck] = cfg.recover_steps
+        self._since_rotation[stuck] = 0
+        self.deadlocks += stuck
+        rotating = self._rotation_left > 0
+        self._rotation_left[rotating] -= 1
+        return np.where(rotating[:, None], rotate_goal_clockwise(positions, goals), goals)
+
+
+@contextlib.contextmanager
+def quiet_stdout():
+    """Silence C-level writes to standard output (solver banners) for the duration."""
+    sys.stdout.flush()
+    saved = os.dup(1)
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    try:
+        os.dup2(devnull, 1)
+        yield
+    finally:
+        os.dup2(saved, 1)
+        os.close(saved)
+        os.close(devnull)
+
+
+def rotate_goal_clockwise(positions: np.ndarray, goals: np.ndarray) -> np.ndarray:
+    """Appendix C, Eq. (51): ``g_tmp = R_z(−90°)(g − p̂) + p̂`` (the z component is kept)."""
+    rel = goals - positions
+    out = rel.copy()
+    out[:, 0], out[:, 1] = rel[:, 1], -rel[:, 0]
+    return out + positions
