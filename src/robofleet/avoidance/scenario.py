@@ -77,6 +77,10 @@ class WorkspaceSpec(SpecModel):
 
     @model_validator(mode="after")
     def _bounds(self):
+        if len(self.bounds) == 4 and not isinstance(self.bounds[0], (list, tuple)):
+            x0, y0, x1, y1 = self.bounds
+            if not (x0 < x1 and y0 < y1):
+                raise ScenarioError("bounds", "[xmin, ymin, xmax, ymax] with min < max", list(self.bounds))
         verts = self.bounds_vertices()
         poly = Polygon(verts)
         if not poly.is_valid or poly.area <= 0:
