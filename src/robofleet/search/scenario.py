@@ -255,7 +255,7 @@ def seed_int(seed: RngLike) -> int:
     return int(as_generator(seed).integers(0, 2**63 - 1))
 
 
-@lru_cache(maxsize=8)
+@lru_cache(maxsize=32)
 def coverage_probe(grid: Grid, r_st: float) -> CoverageProbe:
     """The cached coverage probe of a grid."""
     return CoverageProbe(grid, r_st)
