@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import signal
 import subprocess
 import sys
@@ -170,3 +171,30 @@ def test_killed_sweep_loses_only_the_task_in_flight(tmp_path):
 def test_bad_arguments_raise_config_errors(tmp_path, kwargs, words):
     with pytest.raises(ConfigError, match=words.replace("[", r"\[").replace("]", r"\]")):
         run_tasks(noisy_sum, make_tasks(1), tmp_path, progress=False, **kwargs)
+
+
+def test_ctrl_c_on_a_process_sweep_keeps_finished_runs_and_records_no_failures(tmp_path):
+    """SIGINT to the whole process group (what Ctrl-C does): workers are interrupted too,
+    but their interruption is not mistaken for task failures."""
+    store = tmp_path / "store"
+    script = textwrap.dedent(
+        f"""
+        import sys
+        from robofleet.experiments import run_tasks
+        from robofleet.experiments._selftest import noisy_sum
+        tasks = [{{"run_id": f"t{{i:03d}}", "seed": i, "sleep": 0.2}} for i in range(60)]
+        try:
+            run_tasks(noisy_sum, tasks, {str(store)!r}, executor="process", workers=2, progress=False)
+        except KeyboardInterrupt:
+            sys.exit(130)
+        """
+    )
+    proc = subprocess.Popen([sys.executable, "-c", script], start_new_session=True)
+    deadline = time.monotonic() + 60
+    while len(ResultStore(store).finished_ids()) < 4 and time.monotonic() < deadline:
+        time.sleep(0.02)
+    os.killpg(proc.pid, signal.SIGINT)
+    assert proc.wait(timeout=60) == 130
+    result = ResultStore(store)
+    assert 4 <= len(result.finished_ids()) < 60
+    assert result.failed_ids() == set() and result.temporary_files() == []

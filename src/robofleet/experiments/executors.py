@@ -17,6 +17,7 @@ from __future__ import annotations
 import enum
 import logging
 import os
+import signal
 from collections import deque
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
@@ -66,6 +67,12 @@ def call_task(fn: TaskFn, task: dict) -> Outcome:
         return "ok", [dict(r) for r in rows]
     except Exception as exc:  # recorded as a failure row; the sweep goes on
         return "error", one_line(exc)
+
+
+def ignore_interrupts() -> None:
+    """Worker initializer: Ctrl-C is handled by the driving process alone, which stops
+    the workers itself, so an interrupt is never recorded as a task failure."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
 def default_workers() -> int:
@@ -122,8 +129,11 @@ class ProcessRunner:
         self.pending = deque(tasks)
         self.window = workers * WINDOW_PER_WORKER
         self.in_flight: dict[Future, dict] = {}
-        self.pool = ProcessPoolExecutor(max_workers=workers)
+        self.pool = self.new_pool()
         self.fill()
+
+    def new_pool(self) -> ProcessPoolExecutor:
+        return ProcessPoolExecutor(max_workers=self.workers, initializer=ignore_interrupts)
 
     def fill(self) -> None:
         while self.pending and len(self.in_flight) < self.window:
@@ -132,7 +142,7 @@ class ProcessRunner:
                 future = self.pool.submit(call_task, self.fn, task)
             except BrokenProcessPool:  # a worker died: go on with a fresh pool
                 self.pool.shutdown(wait=False, cancel_futures=True)
-                self.pool = ProcessPoolExecutor(max_workers=self.workers)
+                self.pool = self.new_pool()
                 future = self.pool.submit(call_task, self.fn, task)
             self.in_flight[future] = task
 
@@ -143,12 +153,19 @@ class ProcessRunner:
                 for future in done:
                     task = self.in_flight.pop(future)
                     exc = future.exception()
-                    if isinstance(exc, KeyboardInterrupt):  # Ctrl-C reached the workers too
-                        raise KeyboardInterrupt
                     yield task, (("error", one_line(exc)) if exc is not None else future.result())
                 self.fill()
+        except BaseException:  # Ctrl-C, or the consumer stopped: drop the tasks in flight
+            self.stop_workers()
+            raise
         finally:
             self.pool.shutdown(wait=True, cancel_futures=True)
+
+    def stop_workers(self) -> None:
+        """End the worker processes now (their running tasks are lost, nothing is stored)."""
+        processes = getattr(self.pool, "_processes", None) or {}  # no public API before Python 3.14
+        for process in list(processes.values()):
+            process.terminate()
 
 
 def import_distributed():
