@@ -1,0 +1,179 @@
+"""Discrete trajectories π_i : {0, …, K_i} → W (paper 000, "Problem Statement").
+
+A plan is stored as one padded float64 array ``positions`` of shape ``(n, K_max + 1, 2)``
+(rows after ``K_i`` repeat the goal: a finished robot stays parked) and the int array
+``lengths`` of the ``K_i``. Plans come from :mod:`.planner` or from a user's file
+(:func:`load_trajectories`, CSV or NPZ).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..core.errors import ScenarioError
+
+
+@dataclass(frozen=True)
+class Trajectories:
+    """A multi-robot plan sampled at the simulation step.
+
+    Attributes
+    ----------
+    positions: ``(n, K_max + 1, 2)`` float64; ``positions[i, k] = π_i(k)``, padded with the goal.
+    lengths: ``(n,)`` int; ``K_i``, the first step from which robot ``i`` stays at its goal.
+    radius: robot radius ``r`` (robots ``i``, ``j`` collide when ``‖π_i − π_j‖ < 2r``).
+    dt: seconds per step (Δ).
+    """
+
+    positions: np.ndarray
+    lengths: np.ndarray
+    radius: float
+    dt: float
+
+    @property
+    def n_robots(self) -> int:
+        return int(self.positions.shape[0])
+
+    @property
+    def starts(self) -> np.ndarray:
+        return self.positions[:, 0]
+
+    @property
+    def goals(self) -> np.ndarray:
+        return self.positions[np.arange(self.n_robots), self.lengths]
+
+    def at(self, progress: np.ndarray) -> np.ndarray:
+        """Positions ``(n, 2)`` of the robots at progress ``x`` (``π_i(x_i)``)."""
+        return self.positions[np.arange(self.n_robots), np.minimum(progress, self.lengths)]
+
+    def in_plan_time(self, steps: int) -> np.ndarray:
+        """Planned positions ``(steps, n, 2)``: every robot executes its plan undisturbed."""
+        t = np.minimum(np.arange(steps)[:, None], self.lengths[None, :])
+        return self.positions[np.arange(self.n_robots)[None, :], t]
+
+
+def make_trajectories(paths: list[np.ndarray], radius: float, dt: float, source: str | None = None) -> Trajectories:
+    """Validate per-robot paths ``(K_i + 1, 2)`` and pad them into :class:`Trajectories`.
+
+    Trailing repeats of the goal are trimmed so that ``K_i`` is the first step at the goal.
+
+    Raises
+    ------
+    ScenarioError
+        Wrong shape, non-finite values, ``radius <= 0`` or ``dt <= 0``.
+    """
+    if not np.isfinite(radius) or radius <= 0:
+        raise ScenarioError("robots.radius", "a number > 0", radius, source=source)
+    if not np.isfinite(dt) or dt <= 0:
+        raise ScenarioError("simulation.dt", "a number > 0", dt, source=source)
+    if len(paths) == 0:
+        raise ScenarioError("trajectories", "at least one trajectory", "none", source=source)
+    clean = []
+    for i, path in enumerate(paths):
+        arr = np.asarray(path, dtype=float)
+        if arr.ndim != 2 or arr.shape[1] != 2 or arr.shape[0] < 1:
+            raise ScenarioError(f"trajectories[{i}]", "an array shaped (K+1, 2)", f"shape {arr.shape}", source=source)
+        if not np.all(np.isfinite(arr)):
+            raise ScenarioError(f"trajectories[{i}]", "finite coordinates", "NaN or inf", source=source)
+        clean.append(_trim_parking(arr))
+    lengths = np.array([len(p) - 1 for p in clean], dtype=np.intp)
+    padded = np.empty((len(clean), int(lengths.max()) + 1, 2))
+    for i, p in enumerate(clean):
+        padded[i, : len(p)] = p
+        padded[i, len(p):] = p[-1]
+    return Trajectories(padded, lengths, float(radius), float(dt))
+
+
+def _trim_parking(path: np.ndarray) -> np.ndarray:
+    """Drop trailing copies of the last point (the robot already parked)."""
+    moved = np.any(path != path[-1], axis=1)
+    last_move = int(np.flatnonzero(moved)[-1]) if moved.any() else -1
+    return path[: last_move + 2]
+
+
+def load_trajectories(path: str | Path, radius: float, dt: float) -> Trajectories:
+    """Read a plan from a user's file.
+
+    Formats
+    -------
+    ``.npz``: either one array ``positions`` ``(n, K + 1, 2)`` (optionally with ``lengths``
+    ``(n,)``), or arrays ``robot_0``, ``robot_1``, … each ``(K_i + 1, 2)``.
+    ``.csv``: header ``robot,step,x,y``; one row per robot and step, steps ``0..K_i``
+    consecutive for each robot.
+
+    Raises
+    ------
+    ScenarioError
+        Unreadable file, unknown extension, wrong shape, non-finite values.
+    """
+    p = Path(path)
+    source = str(p)
+    if p.suffix.lower() == ".npz":
+        paths = _read_npz(p, source)
+    elif p.suffix.lower() == ".csv":
+        paths = _read_csv(p, source)
+    else:
+        raise ScenarioError("trajectories", "a .csv or .npz file", p.name, source=source)
+    return make_trajectories(paths, radius, dt, source=source)
+
+
+def _read_npz(p: Path, source: str) -> list[np.ndarray]:
+    try:
+        with np.load(p) as npz:
+            data = {k: npz[k] for k in npz.files}
+    except (OSError, ValueError) as exc:
+        raise ScenarioError("", "a readable .npz file", str(exc), source=source) from None
+    if "positions" in data:
+        pos = np.asarray(data["positions"], dtype=float)
+        if pos.ndim != 3 or pos.shape[2] != 2:
+            raise ScenarioError("positions", "an array shaped (n, K+1, 2)", f"shape {pos.shape}", source=source)
+        if "lengths" in data:
+            lengths = np.asarray(data["lengths"]).astype(int)
+            if lengths.shape != (pos.shape[0],) or np.any(lengths < 0) or np.any(lengths >= pos.shape[1]):
+                raise ScenarioError("lengths", f"{pos.shape[0]} integers in [0, {pos.shape[1] - 1}]", data["lengths"], source=source)
+            return [pos[i, : lengths[i] + 1] for i in range(pos.shape[0])]
+        return list(pos)
+    keys = sorted((k for k in data if k.startswith("robot_")), key=lambda k: int(k.split("_")[1]) if k.split("_")[1].isdigit() else -1)
+    if not keys:
+        raise ScenarioError("", "an array 'positions' or arrays 'robot_0', 'robot_1', ...", sorted(data), source=source)
+    return [data[k] for k in keys]
+
+
+def _read_csv(p: Path, source: str) -> list[np.ndarray]:
+    try:
+        table = np.genfromtxt(p, delimiter=",", names=True, dtype=float)
+    except (OSError, ValueError) as exc:
+        raise ScenarioError("", "a readable CSV file with header robot,step,x,y", str(exc), source=source) from None
+    names = table.dtype.names or ()
+    if set(names) != {"robot", "step", "x", "y"}:
+        raise ScenarioError("header", "columns robot,step,x,y", list(names), source=source)
+    table = np.atleast_1d(table)
+    robot, step = table["robot"], table["step"]
+    if not (np.all(np.isfinite(robot)) and np.all(np.isfinite(step))):
+        raise ScenarioError("robot/step", "integers", "NaN or inf", source=source)
+    ids = np.unique(robot.astype(int))
+    if not np.array_equal(ids, np.arange(len(ids))):
+        raise ScenarioError("robot", f"ids 0..{len(ids) - 1}", ids.tolist(), source=source)
+    paths = []
+    for r in ids:
+        rows = table[robot.astype(int) == r]
+        rows = rows[np.argsort(rows["step"], kind="stable")]
+        if not np.array_equal(rows["step"].astype(int), np.arange(len(rows))):
+            raise ScenarioError(f"robot {r}.step", "consecutive steps 0..K", rows["step"][:10].tolist(), source=source)
+        paths.append(np.column_stack([rows["x"], rows["y"]]))
+    return paths
+
+
+def save_trajectories(traj: Trajectories, path: str | Path) -> Path:
+    """Write a plan as ``.npz`` (``positions`` + ``lengths``) or ``.csv`` (``robot,step,x,y``)."""
+    p = Path(path)
+    p.parent.mkdir(parents=True, exist_ok=True)
+    if p.suffix.lower() == ".npz":
+        np.savez(p, positions=traj.positions, lengths=traj.lengths)
+    else:
+        rows = [(i, k, *traj.positions[i, k]) for i in range(traj.n_robots) for k in range(int(traj.lengths[i]) + 1)]
+        np.savetxt(p, np.array(rows), delimiter=",", header="robot,step,x,y", comments="", fmt=["%d", "%d", "%.9g", "%.9g"])
+    return p
