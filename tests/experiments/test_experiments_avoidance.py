@@ -27,13 +27,15 @@ def small_sweep(tmp_path) -> Path:
     return path
 
 
-def test_avoidance_sweep_is_replayable_and_executor_independent(tmp_path):
+def test_avoidance_sweep_is_replayable_and_identical_on_every_executor(tmp_path):
     path = small_sweep(tmp_path)
     serial = run_sweep(path, executor="serial", progress=False, out=tmp_path / "serial")
     process = run_sweep(path, executor="process", workers=2, progress=False, out=tmp_path / "process")
+    dask = run_sweep(path, executor="dask", workers=2, progress=False, out=tmp_path / "dask")
     assert len(serial) == 8 and serial["error"].isna().all()
     columns = deterministic_columns(serial)
     pd.testing.assert_frame_equal(serial[columns], process[columns])
+    pd.testing.assert_frame_equal(serial[columns], dask[columns])
     row = serial.iloc[5]
     spec = load_scenario(CIRCLE, overrides={k: (int(row[k]) if k in ("robots.n", "max_steps") else row[k]) for k in serial.attrs["grid"]})
     replay = simulate(spec, seed=int(row["seed"])).summary()

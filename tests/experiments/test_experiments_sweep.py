@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import itertools
+import json
 
 import numpy as np
 import pandas as pd
@@ -168,3 +169,18 @@ def test_missing_scenario_file_is_named(tmp_path, toy_family):
     path = write_sweep(tmp_path, scenario="absent.yaml", grid={})
     with pytest.raises(ScenarioError, match=r"sweep.yaml: scenario → .*absent.yaml: expected a readable YAML file"):
         plan_sweep(path)
+
+
+def test_parameter_columns_hold_validated_values(tmp_path, toy_family):
+    """YAML reads 1e-1 as a string; the float field makes it 0.1, and so does the column."""
+    path = tmp_path / "s.yaml"
+    (tmp_path / "toy.yaml").write_text(yaml.safe_dump(SCENARIO))
+    path.write_text("scenario: toy.yaml\ngrid:\n  noise.sigma: [1e-1]\n  robots: [{n: 2}, {n: 3, radius: 0.3}]\nseeds: 1\n")
+    plan = plan_sweep(path)
+    assert [t["noise.sigma"] for t in plan.tasks] == [0.1, 0.1]
+    assert plan.tasks[1]["robots"] == {"n": 3, "radius": 0.3}
+    frame = run_sweep(path, executor="serial", progress=False, out=tmp_path / "o")
+    assert frame["noise.sigma"].tolist() == [0.1, 0.1]
+    assert [json.loads(v) for v in frame["robots"]] == [{"n": 2, "radius": 0.1}, {"n": 3, "radius": 0.3}]
+    assert frame["n_robots"].tolist() == [2, 3]
+    assert summarize_sweep(frame)["runs"].tolist() == [1, 1]

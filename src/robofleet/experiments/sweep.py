@@ -181,9 +181,10 @@ def plan_sweep(sweep_file_or_mapping: str | Path | Mapping[str, Any], out: str |
     base_dir = Path(source).parent if source else Path.cwd()
     scenario_ref = str(base_dir / spec.scenario) if isinstance(spec.scenario, str) else spec.scenario
     grid_keys = tuple(spec.grid)
-    combinations = tuple(dict(zip(grid_keys, values)) for values in itertools.product(*spec.grid.values()))
-    for combination in combinations:
-        check_combination(scenario_ref, combination, source)
+    combinations = tuple(
+        check_combination(scenario_ref, dict(zip(grid_keys, values)), source)
+        for values in itertools.product(*spec.grid.values())
+    )
     scenario = read_mapping(scenario_ref)[0]
     seeds = tuple(spawn_seeds(spec.root_seed, spec.seeds) if isinstance(spec.seeds, int) else spec.seeds)
     tasks = tuple(
@@ -197,14 +198,31 @@ def plan_sweep(sweep_file_or_mapping: str | Path | Mapping[str, Any], out: str |
     return SweepPlan(source, scenario, grid_keys, combinations, seeds, tasks, fn, out_dir)
 
 
-def check_combination(scenario_ref: str | dict, combination: dict, source: str | None) -> None:
-    """Validate the scenario with one grid combination; re-raise naming the sweep file."""
+def check_combination(scenario_ref: str | dict, combination: dict, source: str | None) -> dict:
+    """Validate the scenario with one grid combination; re-raise naming the sweep file.
+
+    Returns the combination with each value as the validated scenario holds it (e.g. the
+    YAML string ``"1e-3"`` becomes ``0.001`` for a float field), so parameter columns
+    and run ids carry the values that were actually simulated.
+    """
     try:
-        load_scenario(scenario_ref, overrides=combination)
+        spec = load_scenario(scenario_ref, overrides=combination)
     except ScenarioError as exc:
         where = "scenario" if not combination else "grid " + ", ".join(f"{k}={v!r}" for k, v in combination.items())
         inner = f"{exc.source or 'inline scenario'}" + (f": {exc.field}" if exc.field else "")
         raise ScenarioError(f"{where} → {inner}", exc.expected, exc.received, source=source) from None
+    dumped = spec.model_dump(mode="json")
+    return {key: get_path(dumped, key, value) for key, value in combination.items()}
+
+
+def get_path(mapping: Mapping, dotted: str, default: Any) -> Any:
+    """``mapping["a"]["b"]`` for ``dotted == "a.b"``, or ``default`` if absent."""
+    node: Any = mapping
+    for key in dotted.split("."):
+        if not isinstance(node, Mapping) or key not in node:
+            return default
+        node = node[key]
+    return node
 
 
 def run_sweep(
