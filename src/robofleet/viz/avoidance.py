@@ -108,3 +108,28 @@ def _ellipse(cov: np.ndarray, k: float):
     vals = np.maximum(vals, 0.0)
     angle = float(np.degrees(np.arctan2(vecs[1, 1], vecs[0, 1])))
     return 2 * k * np.sqrt(vals[1]), 2 * k * np.sqrt(vals[0]), angle
+
+
+def plot_reproduction(noise, delta, path: str | Path) -> Path:
+    """Four panels: run collision rate, success and travel time against σ per method, and
+    the per-step pair collision rate of B-UAVC against δ (with the bound y = δ)."""
+    fig, axes = plt.subplots(1, 4, figsize=(17, 3.8))
+    for method, grp in noise.groupby("method"):
+        axes[0].plot(grp["sigma"], grp["run_collided"], "o-", label=method)
+        axes[1].plot(grp["sigma"], grp["success"], "o-", label=method)
+        axes[2].plot(grp["sigma"], grp["mean_travel_time"], "o-", label=method)
+    axes[0].set(xlabel="σ [m]", ylabel="runs with a collision", title="collisions vs noise")
+    axes[1].set(xlabel="σ [m]", ylabel="success rate", title="success vs noise")
+    axes[2].set(xlabel="σ [m]", ylabel="mean travel time [s]", title="travel time vs noise")
+    axes[0].legend()
+    d = delta["delta"].to_numpy()
+    axes[3].loglog(d, np.maximum(delta["pair_step_rate"].to_numpy(), 1e-7), "o-", label="B-UAVC, per pair and step")
+    axes[3].loglog(d, d, "k--", label="bound δ")
+    axes[3].set(xlabel="δ", ylabel="empirical collision probability", title="chance constraint")
+    axes[3].legend()
+    fig.tight_layout()
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return path
