@@ -1,0 +1,265 @@
+"""Revised prioritized planning (RPP; Čáp, Novák, Kleiner & Selecký 2015), the planner that
+produces paper 000's initial trajectories.
+
+Robots plan one after another in priority order (robot index). Robot ``i`` runs a
+space-time A* on a roadmap (a grid of spacing ``grid_spacing`` inside the free space
+eroded by ``r``, nodes joined within ``connection_radius``), with
+
+* moves along roadmap edges at constant maximum speed and waits of ``wait_steps``
+  simulation steps (waiting at the goal is free: the search ends there);
+* the discs of radius ``2r`` around the *starts* of all lower-priority robots as static
+  obstacles (what makes RPP complete on valid infrastructures);
+* the trajectories of all higher-priority robots as moving discs, each parked at its
+  goal once it has arrived — so a robot may only stop at its goal after the last
+  moment a higher-priority robot passes there;
+* the heuristic "shortest roadmap travel time to the goal" (Dijkstra, admissible).
+
+Time is the simulation step Δ, so a plan is directly the sampled trajectory ``π_i``.
+(The authors' release planned with 540 ms steps; here a wait lasts ``wait_steps`` Δ.)
+
+Valid infrastructure (Čáp et al.): every robot has a start-to-goal roadmap path avoiding
+the ``2r`` discs around all other robots' starts and goals. :func:`check_valid_infrastructure`
+tests it; RPP is guaranteed to succeed on such instances.
+"""
+
+from __future__ import annotations
+
+import heapq
+from dataclasses import dataclass
+
+import numpy as np
+import shapely
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import dijkstra
+
+from ..core.errors import InfeasibleError, ScenarioError
+from ..core.geometry import point_segment_distance
+from ..core.workspace import Workspace
+from .trajectories import Trajectories, make_trajectories
+
+
+@dataclass(frozen=True)
+class PlannerSettings:
+    """Parameters of the roadmap and the space-time search (lengths in map units)."""
+
+    radius: float
+    speed: float
+    dt: float
+    grid_spacing: float = 75.0
+    connection_radius: float = 120.0
+    wait_steps: int = 5
+    max_steps: int = 20000
+    max_expansions: int = 400000
+
+
+@dataclass(frozen=True)
+class Roadmap:
+    """Roadmap nodes ``(N, 2)`` and undirected edges ``(E, 2)`` (both directions listed)."""
+
+    nodes: np.ndarray
+    edges: np.ndarray
+
+    @property
+    def lengths(self) -> np.ndarray:
+        return np.linalg.norm(self.nodes[self.edges[:, 1]] - self.nodes[self.edges[:, 0]], axis=1)
+
+
+def build_roadmap(workspace: Workspace, settings: PlannerSettings, extra_points: np.ndarray) -> Roadmap:
+    """Grid nodes inside the free space eroded by ``r`` plus ``extra_points`` (starts, goals),
+    joined when closer than ``connection_radius`` and the segment stays in the eroded space."""
+    eroded = shapely.buffer(workspace.free_polygon, -settings.radius)
+    shapely.prepare(eroded)
+    xmin, ymin, xmax, ymax = workspace.extent
+    s = settings.grid_spacing
+    gx, gy = np.meshgrid(np.arange(xmin + s / 2, xmax, s), np.arange(ymin + s / 2, ymax, s))
+    grid = np.column_stack([gx.ravel(), gy.ravel()])
+    grid = grid[shapely.contains_xy(eroded, grid[:, 0], grid[:, 1])]
+    nodes = np.concatenate([grid, np.asarray(extra_points, dtype=float).reshape(-1, 2)])
+    from scipy.spatial import cKDTree
+
+    pairs = cKDTree(nodes).query_pairs(settings.connection_radius, output_type="ndarray")
+    lines = shapely.linestrings(np.stack([nodes[pairs[:, 0]], nodes[pairs[:, 1]]], axis=1))
+    pairs = pairs[shapely.contains(eroded, lines) | shapely.covers(eroded, lines)]
+    return Roadmap(nodes, np.concatenate([pairs, pairs[:, ::-1]]))
+
+
+def check_valid_infrastructure(roadmap: Roadmap, starts: np.ndarray, goals: np.ndarray, radius: float,
+                               start_nodes: np.ndarray, goal_nodes: np.ndarray) -> None:
+    """Raise unless every robot reaches its goal avoiding the ``2r`` discs of all other endpoints.
+
+    Raises
+    ------
+    InfeasibleError
+        Naming the first robot without such a path.
+    """
+    n = len(starts)
+    for i in range(n):
+        others = np.concatenate([np.delete(starts, i, axis=0), np.delete(goals, i, axis=0)])
+        ok_edges = _edges_clear_of(roadmap, others, 2 * radius)
+        if not np.isfinite(_distances(roadmap, ok_edges, int(goal_nodes[i]))[start_nodes[i]]):
+            raise InfeasibleError(
+                f"robots[{i}]: expected a valid infrastructure (a path from start {starts[i].round(1).tolist()} to goal "
+                f"{goals[i].round(1).tolist()} avoiding the other robots' starts and goals), received none"
+            )
+
+
+def _edges_clear_of(roadmap: Roadmap, points: np.ndarray, reach: float) -> np.ndarray:
+    """Edges whose segment keeps distance ``≥ reach`` from every point."""
+    if len(points) == 0:
+        return np.ones(len(roadmap.edges), dtype=bool)
+    a, b = roadmap.nodes[roadmap.edges[:, 0]], roadmap.nodes[roadmap.edges[:, 1]]
+    return point_segment_distance(points, a, b).min(axis=0) >= reach
+
+
+def _distances(roadmap: Roadmap, edge_ok: np.ndarray, target: int, weights: np.ndarray | None = None) -> np.ndarray:
+    """Shortest-path lengths to ``target`` over the allowed edges (``inf`` when unreachable)."""
+    e = roadmap.edges[edge_ok]
+    w = (roadmap.lengths if weights is None else weights)[edge_ok]
+    n = len(roadmap.nodes)
+    graph = coo_matrix((w + 1e-9, (e[:, 1], e[:, 0])), shape=(n, n)).tocsr()
+    return dijkstra(graph, directed=True, indices=target)
+
+
+def plan_prioritized(workspace: Workspace, starts: np.ndarray, goals: np.ndarray, settings: PlannerSettings,
+                     check_infrastructure: bool = True) -> Trajectories:
+    """Plan collision-free trajectories for all robots (RPP).
+
+    Raises
+    ------
+    ScenarioError
+        A start or goal outside the free space (closer than ``r`` to a wall) or overlapping another.
+    InfeasibleError
+        No valid infrastructure, or a robot's space-time search fails within ``max_steps``.
+    """
+    starts, goals = np.asarray(starts, dtype=float), np.asarray(goals, dtype=float)
+    check_endpoints(workspace, starts, goals, settings.radius)
+    n = len(starts)
+    roadmap = build_roadmap(workspace, settings, np.concatenate([starts, goals]))
+    base = len(roadmap.nodes) - 2 * n
+    start_nodes, goal_nodes = base + np.arange(n), base + n + np.arange(n)
+    for i, node in enumerate(np.concatenate([start_nodes, goal_nodes])):
+        if not np.any(roadmap.edges[:, 0] == node):
+            which, k = ("starts", i) if i < n else ("goals", i - n)
+            raise InfeasibleError(f"robots.{which}[{k}]: expected a point connected to the roadmap, received an isolated one")
+    if check_infrastructure:
+        check_valid_infrastructure(roadmap, starts, goals, settings.radius, start_nodes, goal_nodes)
+    paths: list[np.ndarray] = []
+    for i in range(n):
+        search = SpaceTimeSearch(roadmap, settings, start_nodes[i], goal_nodes[i], np.asarray(paths_to_array(paths)), starts[i + 1:])
+        path = search.run()
+        if path is None:
+            raise InfeasibleError(f"robots[{i}]: expected a trajectory to goal {goals[i].round(1).tolist()}, received none within {settings.max_steps} steps")
+        paths.append(path)
+    return make_trajectories(paths, settings.radius, settings.dt)
+
+
+def check_endpoints(workspace: Workspace, starts: np.ndarray, goals: np.ndarray, radius: float) -> None:
+    """Starts and goals must have clearance ``≥ r`` and be ``≥ 2r`` apart (ScenarioError otherwise)."""
+    for name, pts in (("starts", starts), ("goals", goals)):
+        clearance = workspace.clearance(pts)
+        bad = np.flatnonzero(clearance < radius)
+        if len(bad):
+            raise ScenarioError(f"robots.{name}[{bad[0]}]", f"a point inside the free space with clearance >= radius {radius}",
+                                pts[bad[0]].round(2).tolist())
+        d = np.linalg.norm(pts[:, None] - pts[None], axis=-1) + np.eye(len(pts)) * 1e18
+        i, j = np.unravel_index(np.argmin(d), d.shape)
+        if len(pts) > 1 and d[i, j] < 2 * radius:
+            raise ScenarioError(f"robots.{name}[{max(i, j)}]", f"at least 2r = {2 * radius} from robots.{name}[{min(i, j)}]",
+                                pts[max(i, j)].round(2).tolist())
+
+
+def paths_to_array(paths: list[np.ndarray]) -> np.ndarray:
+    """Higher-priority plans as ``(T, m, 2)``, each padded with its goal."""
+    if not paths:
+        return np.empty((1, 0, 2))
+    t = max(len(p) for p in paths)
+    return np.stack([np.vstack([p, np.repeat(p[-1:], t - len(p), axis=0)]) for p in paths], axis=1)
+
+
+class SpaceTimeSearch:
+    """Space-time A* for one robot against moving (higher-priority) and static (lower-priority start) discs.
+
+    States are ``(node, t)`` with ``t`` in simulation steps; an edge of length ``ℓ`` takes
+    ``ceil(ℓ / (v Δ))`` steps, a wait ``wait_steps``. A move is collision-checked at every
+    intermediate step against the higher-priority positions (vectorized).
+    """
+
+    def __init__(self, roadmap: Roadmap, settings: PlannerSettings, start: int, goal: int, higher: np.ndarray, lower_starts: np.ndarray):
+        self.roadmap, self.s = roadmap, settings
+        self.start, self.goal = int(start), int(goal)
+        self.higher = higher  # (T, m, 2)
+        self.reach2 = (2 * settings.radius) ** 2
+        edge_ok = _edges_clear_of(roadmap, lower_starts, 2 * settings.radius)
+        step_len = settings.speed * settings.dt
+        self.duration = np.maximum(1, np.ceil(roadmap.lengths / step_len - 1e-9)).astype(int)
+        self.h = _distances(roadmap, edge_ok, self.goal, self.duration.astype(float))
+        if not np.isfinite(self.h[self.start]):
+            raise InfeasibleError(f"roadmap node {self.start}: expected a path to the goal avoiding lower-priority starts, received none")
+        order = np.argsort(roadmap.edges[:, 0], kind="stable")
+        ok = order[edge_ok[order]]
+        self.adj_ptr = np.searchsorted(roadmap.edges[ok, 0], np.arange(len(roadmap.nodes) + 1))
+        self.adj_to = roadmap.edges[ok, 1]
+        self.adj_dur = self.duration[ok]
+        self.goal_free_from = self._goal_free_from()
+
+    def _goal_free_from(self) -> int:
+        """First step from which no higher-priority robot comes within ``2r`` of the goal."""
+        if self.higher.shape[1] == 0:
+            return 0
+        g = self.roadmap.nodes[self.goal]
+        close = (((self.higher - g) ** 2).sum(-1) < self.reach2).any(axis=1)
+        if close[-1]:
+            return np.iinfo(np.int64).max  # a higher-priority robot is parked there
+        hits = np.flatnonzero(close)
+        return int(hits[-1]) + 1 if len(hits) else 0
+
+    def _clear(self, a: np.ndarray, b: np.ndarray, t0: int, d: int) -> bool:
+        """Does the straight move ``a → b`` over steps ``t0 … t0 + d`` avoid all moving discs?"""
+        if self.higher.shape[1] == 0:
+            return True
+        frac = np.arange(1, d + 1)[:, None] / d
+        pts = a + (b - a) * frac
+        t = np.minimum(np.arange(t0 + 1, t0 + d + 1), len(self.higher) - 1)
+        return bool(np.all(((self.higher[t] - pts[:, None]) ** 2).sum(-1) >= self.reach2))
+
+    def run(self) -> np.ndarray | None:
+        """The trajectory ``(K + 1, 2)``, or ``None`` if none is found within the limits."""
+        nodes = self.roadmap.nodes
+        if not self._clear(nodes[self.start], nodes[self.start], -1, 1):
+            return None
+        open_heap = [(float(self.h[self.start]), 0, self.start)]
+        parent: dict[tuple[int, int], tuple[int, int] | None] = {(self.start, 0): None}
+        closed: set[tuple[int, int]] = set()
+        expansions = 0
+        while open_heap and expansions < self.s.max_expansions:
+            _, t, u = heapq.heappop(open_heap)
+            if (u, t) in closed:
+                continue
+            closed.add((u, t))
+            expansions += 1
+            if u == self.goal and t >= self.goal_free_from:
+                return self._trajectory(parent, (u, t))
+            moves = [(u, self.s.wait_steps)] + list(zip(self.adj_to[self.adj_ptr[u]:self.adj_ptr[u + 1]].tolist(),
+                                                         self.adj_dur[self.adj_ptr[u]:self.adj_ptr[u + 1]].tolist()))
+            for v, d in moves:
+                key = (v, t + d)
+                if key in closed or key in parent or t + d > self.s.max_steps:
+                    continue
+                if not self._clear(nodes[u], nodes[v], t, d):
+                    continue
+                parent[key] = (u, t)
+                heapq.heappush(open_heap, (t + d + float(self.h[v]), t + d, v))
+        return None
+
+    def _trajectory(self, parent, state) -> np.ndarray:
+        chain = []
+        while state is not None:
+            chain.append(state)
+            state = parent[state]
+        chain.reverse()
+        nodes = self.roadmap.nodes
+        out = [nodes[chain[0][0]][None]]
+        for (u, t0), (v, t1) in zip(chain[:-1], chain[1:]):
+            frac = np.arange(1, t1 - t0 + 1)[:, None] / (t1 - t0)
+            out.append(nodes[u] + (nodes[v] - nodes[u]) * frac)
+        return np.concatenate(out)
