@@ -8,11 +8,13 @@ Paper 002:
 * Section 2: ``r_safe > r_rob`` (the safety radius includes all errors).
 * 3.1.1 ``r_st ≥ a + r_safe`` — areas near inaccessible vertices are detected from their
   accessible neighbours (Fig. 2, area D).
-* 3.1.2 the curvature of the concave parts of the area is at most ``1/r_st``. For polygons
-  (whose corners have unbounded curvature) we check the property the assumption serves:
-  the deepest point of a pocket of ``A_d`` — the largest distance from a point of ``A_d`` to
-  the region of robot centres keeping ``r_safe`` clearance — is at most ``r_st − a/√3``
-  (``a/√3`` is the covering radius of the triangular grid). Sections A–C of Fig. 2 fail it.
+* 3.1.2 the curvature of the concave parts of the area is at most ``1/r_st``. A polygon's
+  corners have unbounded curvature, so we read the assumption at the scale ``r_st``: along
+  the boundary of ``A_d`` (interior on the left), the boundary may turn towards the area by
+  at most 1 rad within any stretch of length ``r_st`` — what an arc of radius ``r_st`` does.
+  A rounded corner of radius ``≥ r_st`` passes, a right-angled corner of the border (a
+  turn of π/2 at one point) or a notch in an obstacle fails; convex obstacles never fail
+  (their corners turn away from the area). Sections A–C of Fig. 2 fail it.
 * 3.1.3 passages between obstacles, or between obstacles and the border, are at least
   ``W_pass = a + 2 r_safe`` wide (Fig. 3).
 
@@ -75,19 +77,31 @@ class AssumptionReport:
         }
 
 
-def pocket_depth(workspace: Workspace, r_safe: float, spacing: float) -> float:
-    """Largest distance from a point of ``A_d`` to the centres keeping ``r_safe`` clearance.
+def max_boundary_turn(workspace: Workspace, window: float) -> float:
+    """Largest turn (rad) towards ``A_d`` of its boundary within a stretch of length ``window``.
 
-    The farthest point lies on the boundary of ``A_d``, which is sampled every ``spacing``.
-    Returns ``inf`` when no point keeps the clearance.
+    Rings are traversed with ``A_d`` on the left (outer border counter-clockwise, obstacles
+    clockwise); a left turn bends the boundary around the area (a pocket), a right turn away
+    from it. Returns the maximum over all stretches of the sum of signed turns. O(V²) per ring.
     """
-    free = workspace.free_polygon
-    centres = free.buffer(-r_safe, quad_segs=16)
-    if centres.is_empty:
-        return float("inf")
-    boundary = shapely.segmentize(free.boundary, spacing)
-    pts = shapely.get_coordinates(boundary)
-    return float(shapely.distance(shapely.points(pts), centres).max())
+    rings = [np.asarray(workspace.bounds, dtype=float)]
+    rings += [np.asarray(o, dtype=float)[::-1] for o in workspace.obstacles]  # stored ccw -> cw
+    worst = 0.0
+    for ring in rings:
+        if np.allclose(ring[0], ring[-1]):
+            ring = ring[:-1]
+        edge = np.roll(ring, -1, axis=0) - ring
+        heading = np.arctan2(edge[:, 1], edge[:, 0])
+        turn = (heading - np.roll(heading, 1) + np.pi) % (2 * np.pi) - np.pi  # turn at each vertex
+        length = np.linalg.norm(edge, axis=1)
+        start = np.concatenate([[0.0], np.cumsum(length)])  # arc length at each vertex
+        total = start[-1]
+        pos = np.concatenate([start[:-1], start[:-1] + total])
+        turns = np.concatenate([turn, turn])
+        for i in range(len(ring)):
+            inside = (pos >= pos[i] - EPS) & (pos <= pos[i] + window + EPS)
+            worst = max(worst, float(turns[inside].sum()))
+    return worst
 
 
 def narrowest_passage(workspace: Workspace) -> float:
@@ -104,15 +118,15 @@ def check_assumptions(workspace: Workspace, kind: GridKind | str, a: float, r_ro
                       r_so: float, r_st: float, r_c: float) -> AssumptionReport:
     """Evaluate Assumptions 2.4, 2.5, 3.1.1–3.1.3 (and ``r_safe > r_rob``) for an instance."""
     kind = GridKind(kind)
-    depth = pocket_depth(workspace, r_safe, a / 20)
+    turn = max_boundary_turn(workspace, r_st)
     passage = narrowest_passage(workspace)
     checks = (
         AssumptionCheck("safety", "r_safe > r_rob", bool(r_safe > r_rob), float(r_safe), float(r_rob)),
         AssumptionCheck("2.4", "r_so >= a + r_safe", r_so >= a + r_safe - EPS, r_so, a + r_safe),
         AssumptionCheck("2.5", "r_c >= 2a + r_safe - r_rob", r_c >= 2 * a + r_safe - r_rob - EPS, r_c, 2 * a + r_safe - r_rob),
         AssumptionCheck("3.1.1", "r_st >= a + r_safe", r_st >= a + r_safe - EPS, r_st, a + r_safe),
-        AssumptionCheck("3.1.2", "pocket depth <= r_st - a/sqrt(3) (curvature <= 1/r_st, polygonal reading)",
-                        depth <= r_st - a / np.sqrt(3) + EPS, depth, r_st - a / np.sqrt(3)),
+        AssumptionCheck("3.1.2", "boundary turn towards A_d within any length r_st <= 1 rad (curvature <= 1/r_st)",
+                        turn <= 1.0 + 1e-6, turn, 1.0),
         AssumptionCheck("3.1.3", "passage width >= a + 2 r_safe", passage >= a + 2 * r_safe - EPS, passage, a + 2 * r_safe),
     )
     ok = {c.name: c.holds for c in checks}

@@ -27,6 +27,7 @@ import shapely
 from pydantic import Field, field_validator, model_validator
 
 from ..core.errors import ScenarioError
+from ..core.geometry import ensure_ccw
 from ..core.rng import RngLike, as_generator, keyed_generator
 from ..core.trace import Trace
 from ..core.workspace import Workspace
@@ -45,6 +46,7 @@ class WorkspaceSpec(SpecModel):
     """The search area ``A``: a rectangle or a polygon, with polygonal obstacles (Assumption 2.1)."""
 
     rectangle: tuple[float, float, float, float] | None = None
+    corner_radius: float = Field(0.0, ge=0, description="rounds the rectangle's corners (arcs sampled every 5 degrees)")
     bounds: list[Point] | None = None
     obstacles: list[list[Point]] = []
 
@@ -56,6 +58,10 @@ class WorkspaceSpec(SpecModel):
             x0, y0, x1, y1 = self.rectangle
             if not (x1 > x0 and y1 > y0 and all(map(math.isfinite, self.rectangle))):
                 raise ScenarioError("rectangle", "finite [xmin, ymin, xmax, ymax] with xmax > xmin and ymax > ymin", list(self.rectangle))
+            if 2 * self.corner_radius >= min(x1 - x0, y1 - y0):
+                raise ScenarioError("corner_radius", f"a radius below half the rectangle's shorter side ({min(x1 - x0, y1 - y0) / 2:g})", self.corner_radius)
+        elif self.corner_radius:
+            raise ScenarioError("corner_radius", "0 unless the area is a rectangle", self.corner_radius)
         area = self.workspace().boundary_polygon
         if not area.is_valid or area.area <= 0:
             raise ScenarioError("bounds", "a simple polygon with positive area", self.bounds)
@@ -72,11 +78,19 @@ class WorkspaceSpec(SpecModel):
 
     def workspace(self) -> Workspace:
         obstacles = tuple(np.asarray(o, dtype=float) for o in self.obstacles)
-        if self.rectangle is not None:
+        if self.rectangle is not None and self.corner_radius == 0:
             return Workspace.rectangle(*self.rectangle, obstacles=obstacles)
-        from ..core.geometry import ensure_ccw
+        bounds = rounded_rectangle(self.rectangle, self.corner_radius) if self.rectangle is not None else np.asarray(self.bounds, dtype=float)
+        return Workspace(ensure_ccw(bounds), tuple(ensure_ccw(o) for o in obstacles))
 
-        return Workspace(ensure_ccw(np.asarray(self.bounds, dtype=float)), tuple(ensure_ccw(o) for o in obstacles))
+
+def rounded_rectangle(rectangle, radius: float, step_degrees: float = 5.0) -> np.ndarray:
+    """Counter-clockwise vertices of a rectangle whose corners are arcs of ``radius``."""
+    x0, y0, x1, y1 = rectangle
+    centres = [(x1 - radius, y0 + radius, -90.0), (x1 - radius, y1 - radius, 0.0), (x0 + radius, y1 - radius, 90.0), (x0 + radius, y0 + radius, 180.0)]
+    angles = np.deg2rad(np.arange(0.0, 90.0 + 1e-9, step_degrees))
+    pts = [np.column_stack([cx + radius * np.cos(np.deg2rad(a0) + angles), cy + radius * np.sin(np.deg2rad(a0) + angles)]) for cx, cy, a0 in centres]
+    return np.concatenate(pts)
 
 
 class GridSpec(SpecModel):
@@ -172,7 +186,7 @@ class Spec(SpecModel):
     def built_grid(self) -> Grid:
         """The grid of this scenario (cached per area, kind, ``a`` and ``r_safe``)."""
         ws = self.workspace
-        return cached_grid(ws.rectangle, tuple(map(tuple, ws.bounds or [])), tuple(tuple(map(tuple, o)) for o in ws.obstacles),
+        return cached_grid(ws.rectangle, ws.corner_radius, tuple(map(tuple, ws.bounds or [])), tuple(tuple(map(tuple, o)) for o in ws.obstacles),
                            self.grid.kind.value, self.grid.a, self.ranges.r_safe)
 
     def assumption_report(self) -> AssumptionReport:
@@ -215,9 +229,10 @@ class Spec(SpecModel):
 
 
 @lru_cache(maxsize=32)
-def cached_grid(rectangle, bounds, obstacles, kind: str, a: float, r_safe: float) -> Grid:
+def cached_grid(rectangle, corner_radius, bounds, obstacles, kind: str, a: float, r_safe: float) -> Grid:
     """Build (once per process) the grid of an area."""
-    spec = WorkspaceSpec(rectangle=rectangle, bounds=[list(p) for p in bounds] or None, obstacles=[list(o) for o in obstacles])
+    spec = WorkspaceSpec(rectangle=rectangle, corner_radius=corner_radius, bounds=[list(p) for p in bounds] or None,
+                         obstacles=[list(o) for o in obstacles])
     return build_grid(spec.workspace(), kind, a, r_safe)
 
 
