@@ -206,7 +206,7 @@ class Spec(SpecModel):
         if self.robots.starts is not None:
             ids, dist = grid.nearest_vertex(np.asarray(self.robots.starts, dtype=float))
             for k, (v, d) in enumerate(zip(ids, dist)):
-                if d > 1e-6 * grid.a:
+                if d > 1e-3 * grid.a:
                     raise ScenarioError(f"robots.starts.{k}", f"a grid vertex (nearest is {grid.points[v].round(4).tolist()})", list(self.robots.starts[k]))
                 if not grid.accessible[v]:
                     raise ScenarioError(f"robots.starts.{k}", "an accessible vertex (clearance >= r_safe)", list(self.robots.starts[k]))
