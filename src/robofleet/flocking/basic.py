@@ -7,7 +7,11 @@ Line numbers below refer to the listing of Algorithm 1 in the paper.
 * Line 2: Y := the line through L and B, oriented B → L. When L = B (within
   ``axis_tolerance``) the follower waits (footnote 3): it moves to its own position.
 * Lines 3-5: S_0, S_1, S_2 = followers on Y (``|signed distance| ≤ axis_tolerance``),
-  on its left, on its right, in the observer's local sense of left.
+  on its left, on its right, in the observer's local sense of left. The paper says
+  "exactly on Y"; with floating point and a moving Y an exact test would almost never
+  hold, and a follower holding an axis slot would flip between S_1 and S_2 as Y drifts
+  between its Looks (we measured the column pattern never converging with 1e-6). The
+  default tolerance is 0.5 units (patterns span ~100 units).
 * Line 6: F := Final_Positions(ℙ, L, Y): ℙ rotated so that its axis B_P → L lies along
   B → L, translated onto L. Line 7: B_F its barycenter. Lines 8-10: F_0, F_1, F_2. The
   side of a slot is decided in pattern coordinates (a proper rotation keeps sides), so
@@ -89,7 +93,7 @@ class BasicAlgorithm:
         and within which L = B counts as the tie of footnote 3.
     """
 
-    axis_tolerance: float = 1e-6
+    axis_tolerance: float = 0.5
 
     name: ClassVar[str] = "basic"
     frames: ClassVar[FrameAgreement] = "none"

@@ -34,6 +34,8 @@ from .model import FrameAgreement, Snapshot
 from .patterns import Pattern
 
 X_AXIS = np.array([1.0, 0.0])
+#: Leader displacement (units) below which the stored position gives no heading.
+MIN_LEADER_STEP = 1e-9
 
 
 @dataclass(frozen=True)
@@ -68,7 +70,7 @@ class MemoryAlgorithm(BasicAlgorithm):
         if snapshot.memory is not None:
             step = self._leader_persistent(snapshot) - np.asarray(snapshot.memory)
             norm = np.linalg.norm(step)
-            if norm > self.axis_tolerance:
+            if norm > MIN_LEADER_STEP:
                 return step / norm
         return super().y_axis(snapshot)
 

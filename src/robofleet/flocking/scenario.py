@@ -115,7 +115,7 @@ class AlgorithmSpec(SpecModel):
     """The algorithm and its tolerances."""
 
     kind: AlgorithmKind = "basic"
-    axis_tolerance: float = Field(default=1e-6, gt=0)
+    axis_tolerance: float = Field(default=0.5, gt=0)
     margin: float = Field(default=1e-3, ge=0)
     random_move: float = Field(default=1.0, gt=0)
 
@@ -258,6 +258,16 @@ def _trace(spec, seed, pattern, speeds, frames, course, result, xi, slot_speed) 
         "seen_moving_share": float(np.mean(log.seen_moving > 0)) if len(log) else 0.0,
         **{f"leader_{k}" if not k.startswith("condition") else k: v for k, v in cond.as_dict().items()},
     }
+    arrays = {"positions": result.positions, "time": result.times, "delta_e": de, "delta_r": dr, "leader_heading": result.headings}
+    if not pattern.is_lb_symmetric:
+        # Without common chirality ℙ and its mirror image look the same to every follower
+        # (a mirrored frame): report the distance to the nearer of the two as well.
+        de_mirror, _ = metrics.delta_series(result.positions, result.headings, Pattern(pattern.mirrored(), pattern.name))
+        dm = np.fmin(de, de_mirror)
+        arrays["delta_e_up_to_reflection"] = dm
+        results["delta_m_final"] = float(dm[-1])
+        results["convergence_time_m"] = metrics.convergence_time(result.times, dm, xi)
+        results["formed_mirror_image"] = bool(de_mirror[-1] < de[-1])
     results["converged_e"] = bool(np.isfinite(results["convergence_time_e"]))
     results["converged_r"] = bool(np.isfinite(results["convergence_time_r"]))
     metadata = {
@@ -267,5 +277,4 @@ def _trace(spec, seed, pattern, speeds, frames, course, result, xi, slot_speed) 
         "leader_speed": course.speed, "leader_turn_rate": course.max_turn_rate, "xi": xi,
         "algorithm": spec.algorithm.model_dump(), "scheduler": spec.scheduler.model_dump(),
     }
-    arrays = {"positions": result.positions, "time": result.times, "delta_e": de, "delta_r": dr, "leader_heading": result.headings}
     return Trace("flocking", arrays, log.as_events(spec.sample_dt), metadata, results)
