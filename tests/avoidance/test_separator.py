@@ -86,3 +86,15 @@ def test_misclassification_probability_decreases_with_distance():
         u1, _ = margins(a[None], np.array([b]), np.zeros((1, 2)), cov[None], np.array([[d, d]]), cov[None])
         errs.append(1 - ndtr(u1[0]))
     assert errs[0] > errs[1] > errs[2]
+
+
+def test_shared_covariance_closed_form_equals_the_general_solver():
+    from robofleet.avoidance.separator import shared_covariance_separator
+
+    rng = np.random.default_rng(9)
+    mi, mj = rng.normal(size=(50, 2)), rng.normal(size=(50, 2))
+    for cov in (random_cov(rng, 1)[0], np.zeros((2, 2)), 0.01 * np.eye(2)):
+        a, b = shared_covariance_separator(mi, mj, cov)
+        a2, b2 = gaussian_separator(mi, cov, mj, cov)
+        np.testing.assert_allclose(a, a2, atol=1e-9)
+        np.testing.assert_allclose(b, b2, atol=1e-9)

@@ -22,7 +22,7 @@ from scipy.spatial import cKDTree
 
 from .buffer import buffer
 from .obstacles import ObstacleSet, obstacle_planes
-from .separator import separator_flat
+from .separator import separator_flat, shared_covariance_separator
 
 
 class Kind(IntEnum):
@@ -104,11 +104,22 @@ def build_cells(
 
 def _robot_rows(p, covs, radius, quantile, pairs):
     i, j = pairs[:, 0], pairs[:, 1]
-    a, b = separator_flat(p[i], covs[i], p[j], covs[j])
     owner = np.concatenate([i, j])
-    normals = np.concatenate([a, -a])
-    offsets = np.concatenate([b, -b]) - buffer(normals, covs[owner], radius[owner], quantile)
+    if _uniform(covs):  # every robot has the same Σ: closed form, no per-pair gathers
+        a, b = shared_covariance_separator(p[i], p[j], covs[0])
+        normals = np.concatenate([a, -a])
+        spread = buffer(normals, covs[0], 0.0, quantile)
+    else:
+        a, b = separator_flat(p[i], covs[i], p[j], covs[j])
+        normals = np.concatenate([a, -a])
+        spread = buffer(normals, covs[owner], 0.0, quantile)
+    offsets = np.concatenate([b, -b]) - spread - radius[owner]
     return owner, normals, offsets, Kind.ROBOT, np.concatenate([j, i])
+
+
+def _uniform(covs: np.ndarray) -> bool:
+    """Whether all robots share one covariance (a broadcast view or equal entries)."""
+    return len(covs) > 0 and (covs.strides[0] == 0 or bool(np.all(covs == covs[0])))
 
 
 def _obstacle_rows(p, covs, radius, quantile, obstacles: ObstacleSet, local_box):

@@ -11,15 +11,20 @@ the candidates (``x* = g − Σ λ_m a_m``, ``λ ≥ 0``):
 3. Otherwise the optimum is a vertex ``v`` of lines ``(m, k)``, ``m`` violated, whose
    multipliers solve ``[a_m a_k] λ = g − v`` with ``λ ≥ 0``; such a ``v`` is the optimum of
    the two-constraint relaxation, so if it is feasible it is optimal.
+4. No candidate is feasible only when the cell is empty.
 
-Candidates are kept as flat lists (one row per robot × candidate), so the work is
-O(C · M) for C candidates instead of O(N · M³); feasibility is tested to ``FEAS_TOL``.
+Each robot's problem has a handful of constraints and data-dependent branches, so the
+kernel is compiled with numba (a flat-list numpy version of the same enumeration spent
+~15 passes over arrays of all candidates and was the hot spot of the 10,000-robot step;
+see ``benchmarks/avoidance_scale.py``). Cost: O(V · M²) per robot for V violated of M
+constraints, typically V, M ≤ 6.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 
 from .cell import Cells
@@ -43,80 +48,72 @@ class Projection:
 
 def project_onto_cells(goals: np.ndarray, cells: Cells) -> Projection:
     """Project ``goals (N, 2)`` onto the cells (exact; see module docstring)."""
-    A, b, valid = cells.A, cells.b, cells.valid
-    slack = _dot(A, goals[:, None]) - b
-    violated = (slack > FEAS_TOL) & valid
-    point = goals.astype(float).copy()
-    active = np.full((len(goals), 2), -1, np.intp)
-    robot, row = np.nonzero(violated)
-    if len(robot) == 0:
-        return Projection(point, np.zeros(len(goals), bool), active)
-    # 2. edge candidates
-    cand = goals[robot] - slack[robot, row, None] * A[robot, row]
-    ok = _feasible(cand, robot, cells)
-    solved = _pick(robot, ok, slack[robot, row], len(goals))
-    has_edge = solved >= 0
-    point[has_edge] = cand[solved[has_edge]]
-    active[has_edge, 0] = row[solved[has_edge]]
-    # 3. vertex candidates for the rest
-    rest = np.flatnonzero(violated.any(axis=1) & ~has_edge)
-    empty = np.zeros(len(goals), bool)
-    if len(rest):
-        _vertex_step(goals, cells, violated, rest, point, active, empty)
+    n = len(goals)
+    point = np.empty((n, 2))
+    empty = np.zeros(n, np.bool_)
+    active = np.full((n, 2), -1, np.intp)
+    _project_all(np.ascontiguousarray(goals, dtype=np.float64), np.ascontiguousarray(cells.A), np.ascontiguousarray(cells.b),
+                 np.ascontiguousarray(cells.valid), point, empty, active)
     return Projection(point, empty, active)
 
 
-def _vertex_step(goals, cells: Cells, violated, rest, point, active, empty):
-    A, b, valid = cells.A, cells.b, cells.valid
-    m_count = A.shape[1]
-    sub_viol = violated[rest]
-    r_idx, m_idx = np.nonzero(sub_viol)
-    # pair every violated row m of a robot with every other valid row k of that robot
-    k_idx = np.tile(np.arange(m_count), len(r_idx))
-    r_rep, m_rep = np.repeat(r_idx, m_count), np.repeat(m_idx, m_count)
-    robot = rest[r_rep]
-    keep = valid[robot, k_idx] & (k_idx != m_rep)
-    robot, m_rep, k_idx = robot[keep], m_rep[keep], k_idx[keep]
-    am, ak = A[robot, m_rep], A[robot, k_idx]
-    bm, bk = b[robot, m_rep], b[robot, k_idx]
-    det = am[:, 0] * ak[:, 1] - am[:, 1] * ak[:, 0]
-    good = np.abs(det) > 1e-12
-    det = np.where(good, det, 1.0)
-    vert = np.column_stack([(bm * ak[:, 1] - bk * am[:, 1]) / det, (am[:, 0] * bk - ak[:, 0] * bm) / det])
-    resid = goals[robot] - vert  # = λ_m a_m + λ_k a_k
-    lam_m = (resid[:, 0] * ak[:, 1] - resid[:, 1] * ak[:, 0]) / det
-    lam_k = (am[:, 0] * resid[:, 1] - am[:, 1] * resid[:, 0]) / det
-    good &= (lam_m >= -FEAS_TOL) & (lam_k >= -FEAS_TOL)
-    robot, vert, m_rep, k_idx = robot[good], vert[good], m_rep[good], k_idx[good]
-    ok = _feasible(vert, robot, cells) if len(robot) else np.zeros(0, bool)
-    dist = np.linalg.norm(vert - goals[robot], axis=1)
-    solved = _pick(robot, ok, dist, len(goals))
-    found = solved[rest] >= 0
-    got = rest[found]
-    point[got] = vert[solved[got]]
-    active[got] = np.column_stack([m_rep[solved[got]], k_idx[solved[got]]])
-    none = rest[~found]
-    point[none] = np.nan
-    empty[none] = True
+@numba.njit(cache=True)
+def _feasible(x0, x1, A, b, valid, i):
+    for k in range(A.shape[1]):
+        if valid[i, k] and A[i, k, 0] * x0 + A[i, k, 1] * x1 > b[i, k] + FEAS_TOL:
+            return False
+    return True
 
 
-def _pick(robot: np.ndarray, ok: np.ndarray, cost: np.ndarray, n: int) -> np.ndarray:
-    """Per robot, the index of its feasible candidate of least cost (``-1`` if none)."""
-    out = np.full(n, -1, np.intp)
-    idx = np.flatnonzero(ok)
-    if len(idx):
-        order = idx[np.lexsort((cost[idx], robot[idx]))]
-        first = np.unique(robot[order], return_index=True)[1]
-        out[robot[order[first]]] = order[first]
-    return out
-
-
-def _feasible(points: np.ndarray, robot: np.ndarray, cells: Cells) -> np.ndarray:
-    """Whether candidate ``points (C, 2)`` lie in the cells of their ``robot (C,)``."""
-    lhs = _dot(cells.A[robot], points[:, None])
-    return np.all((lhs <= cells.b[robot] + FEAS_TOL) | ~cells.valid[robot], axis=1)
-
-
-def _dot(A: np.ndarray, p: np.ndarray) -> np.ndarray:
-    """``A[..., 0] p[..., 0] + A[..., 1] p[..., 1]`` (faster than einsum for d = 2)."""
-    return A[..., 0] * p[..., 0] + A[..., 1] * p[..., 1]
+@numba.njit(cache=True)
+def _project_all(goals, A, b, valid, point, empty, active):
+    n, m = A.shape[0], A.shape[1]
+    slack = np.empty(m)
+    for i in range(n):
+        g0, g1 = goals[i, 0], goals[i, 1]
+        any_violated = False
+        for k in range(m):
+            slack[k] = A[i, k, 0] * g0 + A[i, k, 1] * g1 - b[i, k]
+            if valid[i, k] and slack[k] > FEAS_TOL:
+                any_violated = True
+        point[i, 0], point[i, 1] = g0, g1
+        if not any_violated:
+            continue
+        best = np.inf
+        # step 2: edge candidates of violated constraints (any feasible one is optimal)
+        for k in range(m):
+            if valid[i, k] and slack[k] > FEAS_TOL:
+                x0, x1 = g0 - slack[k] * A[i, k, 0], g1 - slack[k] * A[i, k, 1]
+                if slack[k] < best and _feasible(x0, x1, A, b, valid, i):
+                    best = slack[k]
+                    point[i, 0], point[i, 1] = x0, x1
+                    active[i, 0], active[i, 1] = k, -1
+        if best < np.inf:
+            continue
+        # step 3: vertices pairing a violated constraint with any other, with λ ≥ 0
+        for k in range(m):
+            if not (valid[i, k] and slack[k] > FEAS_TOL):
+                continue
+            ak0, ak1, bk = A[i, k, 0], A[i, k, 1], b[i, k]
+            for j in range(m):
+                if j == k or not valid[i, j]:
+                    continue
+                aj0, aj1, bj = A[i, j, 0], A[i, j, 1], b[i, j]
+                det = ak0 * aj1 - ak1 * aj0
+                if abs(det) <= 1e-12:
+                    continue
+                v0 = (bk * aj1 - bj * ak1) / det
+                v1 = (ak0 * bj - aj0 * bk) / det
+                r0, r1 = g0 - v0, g1 - v1
+                lam_k = (r0 * aj1 - r1 * aj0) / det
+                lam_j = (ak0 * r1 - ak1 * r0) / det
+                if lam_k < -FEAS_TOL or lam_j < -FEAS_TOL:
+                    continue
+                dist = np.sqrt(r0 * r0 + r1 * r1)
+                if dist < best and _feasible(v0, v1, A, b, valid, i):
+                    best = dist
+                    point[i, 0], point[i, 1] = v0, v1
+                    active[i, 0], active[i, 1] = k, j
+        if best == np.inf:  # step 4: empty cell
+            point[i, 0], point[i, 1] = np.nan, np.nan
+            empty[i] = True

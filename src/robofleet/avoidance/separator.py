@@ -76,6 +76,20 @@ def separator_flat(mi: np.ndarray, ci: np.ndarray, mj: np.ndarray, cj: np.ndarra
     return a / norm[:, None], b / norm
 
 
+def shared_covariance_separator(mi: np.ndarray, mj: np.ndarray, cov: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Closed form of Eqs. (48)–(50) when every robot has the same ``cov`` (``(d, d)``).
+
+    ``Σ_i = Σ_j = Σ`` gives ``F(½) = 0``, so ``a = Σ⁻¹(p̂_j − p̂_i)`` and
+    ``b = aᵀ(p̂_i + p̂_j)/2`` (normalised). ``Σ = 0`` is the deterministic BVC limit
+    ``a ∝ p̂_j − p̂_i``. O(K d) for K pairs.
+    """
+    diff = mj - mi
+    a = diff if not np.any(cov) else np.linalg.solve(cov, diff.T).T
+    norm = np.linalg.norm(a, axis=-1)
+    b = np.einsum("kd,kd->k", a, 0.5 * (mi + mj))
+    return a / norm[:, None], b / norm
+
+
 def solve_t(diff: np.ndarray, ci: np.ndarray, cj: np.ndarray) -> np.ndarray:
     """Root ``t ∈ (0, 1)`` of Eq. (50) for every pair (Illinois iteration on the bracket)."""
     k = len(diff)
