@@ -179,9 +179,20 @@ def build_plan(spec: Spec, workspace: Workspace | None = None) -> Trajectories:
         traj = load_trajectories(path, spec.robots.radius, spec.simulation.dt)
         if spec.robots.placement == "explicit" and traj.n_robots != spec.robots.n:
             raise ScenarioError("trajectories", f"{spec.robots.n} trajectories (one per robot)", traj.n_robots, source=spec.source)
+        _check_inside(traj, workspace, str(path))
         return traj
     starts, goals = robot_endpoints(spec, workspace)
     return plan_prioritized(workspace, starts, goals, planner_settings(spec))
+
+
+def _check_inside(traj: Trajectories, workspace: Workspace, source: str) -> None:
+    """Every point of a loaded plan keeps clearance ``≥ r`` from walls and obstacles."""
+    clearance = workspace.clearance(traj.positions)
+    bad = np.argwhere(clearance < traj.radius * (1 - 1e-9))
+    if len(bad):
+        i, k = (int(v) for v in bad[0])
+        raise ScenarioError(f"trajectories[{i}][{k}]", f"a point inside the free space with clearance >= radius {traj.radius}",
+                            traj.positions[i, k].round(3).tolist(), source=source)
 
 
 def probabilities_along(traj: Trajectories, workspace: Workspace, base_probability: float) -> np.ndarray:
@@ -266,3 +277,15 @@ def execution_trace(traj: Trajectories, run: Execution, workspace: Workspace, va
         "plan": np.transpose(traj.positions, (1, 0, 2)).copy(),
     }
     return Trace("coordination", arrays, run.events, metadata, results, workspace)
+
+
+def check(spec: Spec):
+    """Plan (or load) a scenario's trajectories and check Definition 4 and Theorem 4's condition.
+
+    Returns ``(trajectories, coordination_space, TheoryReport)``.
+    """
+    from .theory import check_theory
+
+    traj = build_plan(spec)
+    space = build_coordination_space(traj)
+    return traj, space, check_theory(traj, space)

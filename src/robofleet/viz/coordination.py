@@ -1,0 +1,145 @@
+"""Plots and animations of the coordination family (paper 000): Fig. 6 panels, the map with
+planned trajectories (Fig. 1) and an animation of a run (waiting robots highlighted).
+
+Reads result tables and traces only; never imports an algorithm.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+import pandas as pd  # noqa: E402
+from matplotlib.patches import Circle, Polygon as PolygonPatch  # noqa: E402
+
+from ..core.trace import Trace  # noqa: E402
+from ..core.workspace import Workspace  # noqa: E402
+from .animation import frame_indices, save_gif  # noqa: E402
+
+PANELS = (
+    ("mean_travel_time", "(a) average travel time [s]"),
+    ("decision_ms_per_test", "(b) flip-decision time [ms per test]"),
+    ("flips", "(c) number of flips"),
+    ("finished_share", "(d) finished without deadlock [share]"),
+)
+STYLES = {
+    "RMTRACK": ("tab:gray", "-", "o"), "RMTRACK (checked)": ("tab:gray", "--", "o"),
+    "RMTRACK+TFF": ("tab:blue", "-", "s"), "RMTRACK+TFF (checked)": ("tab:blue", "--", "s"),
+    "RMTRACK+TFA": ("tab:red", "-", "^"), "RMTRACK+TFA (checked)": ("tab:red", "--", "^"),
+}
+
+
+def plot_fig6(summary: pd.DataFrame, path: str | Path) -> Path:
+    """Four panels of Fig. 6 from the per-(robot count, variant) summary table."""
+    fig, axes = plt.subplots(2, 2, figsize=(11, 8))
+    for ax, (column, title) in zip(axes.ravel(), PANELS):
+        for variant, g in summary.groupby("variant", observed=True):
+            color, line, marker = STYLES.get(str(variant), ("k", "-", "."))
+            g = g.sort_values("n_robots")
+            ax.plot(g["n_robots"], g[column], color=color, linestyle=line, marker=marker, label=str(variant))
+        ax.set_title(title)
+        ax.set_xlabel("number of robots")
+        ax.set_xticks(sorted(summary["n_robots"].unique()))
+        ax.grid(alpha=0.3)
+    axes[1, 1].set_ylim(-0.05, 1.05)
+    axes[0, 0].legend(fontsize=8)
+    fig.tight_layout()
+    return _save(fig, path)
+
+
+def draw_workspace(ax, workspace: Workspace) -> None:
+    """Bounds, obstacles and regions (disturbance regions in red, labelled with ``p``)."""
+    ax.add_patch(PolygonPatch(workspace.bounds, closed=True, facecolor="white", edgecolor="black", lw=1.2))
+    for obstacle in workspace.obstacles:
+        ax.add_patch(PolygonPatch(obstacle, closed=True, facecolor="0.6", edgecolor="black", lw=1.0))
+    for region in workspace.regions:
+        p = region.attributes.get("probability")
+        ax.add_patch(PolygonPatch(region.vertices, closed=True, facecolor="red", alpha=0.25, edgecolor="red"))
+        if p is not None:
+            cx, cy = np.asarray(region.vertices).mean(axis=0)
+            ax.text(cx, cy, f"p={p:g}", color="darkred", ha="center", va="center", fontsize=8)
+    xmin, ymin = workspace.bounds.min(axis=0)
+    xmax, ymax = workspace.bounds.max(axis=0)
+    pad = 0.03 * max(xmax - xmin, ymax - ymin)
+    ax.set_xlim(xmin - pad, xmax + pad)
+    ax.set_ylim(ymin - pad, ymax + pad)
+    ax.set_aspect("equal")
+    ax.set_facecolor("0.85")
+
+
+def plot_plan(trace: Trace, path: str | Path) -> Path:
+    """The map with the planned trajectories (dotted) and the starts, like Fig. 1."""
+    fig, ax = plt.subplots(figsize=(8, 6.6))
+    draw_workspace(ax, trace.workspace)
+    _draw_plan(ax, trace)
+    pos = trace.positions[0]
+    for p in pos:
+        ax.add_patch(Circle(p, trace.metadata["radius"], color="tab:blue"))
+    ax.set_title(f"{trace.metadata['n_robots']} robots, planned trajectories")
+    return _save(fig, path)
+
+
+def _draw_plan(ax, trace: Trace) -> None:
+    plan = trace.arrays.get("plan")
+    if plan is None:
+        return
+    colors = plt.cm.tab20(np.linspace(0, 1, plan.shape[1]))
+    for i in range(plan.shape[1]):
+        ax.plot(plan[:, i, 0], plan[:, i, 1], linestyle=":", lw=0.9, color=colors[i])
+
+
+def animate_trace(trace: Trace, path: str | Path, max_frames: int = 150, fps: int = 12) -> Path:
+    """GIF of a run: robots (blue moving, orange waiting, green finished), the disturbance
+    region, the planned trajectories; deadlocked robots in red on the last frame."""
+    positions = trace.positions
+    waiting = trace.arrays.get("waiting", np.zeros(positions.shape[:2] + (1,), bool))[..., 0]
+    progress = trace.arrays.get("progress")
+    plan = trace.arrays.get("plan")
+    lengths = _plan_lengths(plan) if plan is not None else None
+    radius = float(trace.metadata["radius"])
+    dt = float(trace.metadata.get("dt", 1.0))
+    deadlocked = {r for e in trace.events if e.get("kind") == "deadlock" for r in e.get("robots", [])}
+    fig, ax = plt.subplots(figsize=(8, 6.6))
+    draw_workspace(ax, trace.workspace)
+    _draw_plan(ax, trace)
+    discs = [ax.add_patch(Circle(p, radius, color="tab:blue", zorder=3)) for p in positions[0]]
+    title = ax.set_title("")
+    frames = frame_indices(len(positions), max_frames)
+    last = frames[-1]
+
+    def update(t):
+        done = progress[t, :, 0] >= lengths if progress is not None and lengths is not None else np.zeros(len(discs), bool)
+        for i, disc in enumerate(discs):
+            disc.center = positions[t, i]
+            if t == last and i in deadlocked:
+                disc.set_color("tab:red")
+            elif done[i]:
+                disc.set_color("tab:green")
+            elif waiting[min(t, len(waiting) - 1), i]:
+                disc.set_color("tab:orange")
+            else:
+                disc.set_color("tab:blue")
+        title.set_text(f"{trace.metadata.get('method', '')}  t = {t * dt:.1f} s  "
+                       f"waiting: {int(waiting[min(t, len(waiting) - 1)].sum())}")
+        return discs
+
+    return save_gif(fig, update, frames, path, fps=fps)
+
+
+def _plan_lengths(plan: np.ndarray) -> np.ndarray:
+    """``K_i`` from a padded plan ``(K_max + 1, n, 2)``: last step where the robot still moves."""
+    moved = np.any(plan != plan[-1:], axis=-1)  # (K+1, n)
+    last = np.where(moved.any(axis=0), plan.shape[0] - 1 - np.argmax(moved[::-1], axis=0), -1)
+    return last + 1
+
+
+def _save(fig, path) -> Path:
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
