@@ -64,16 +64,17 @@ def neighbour_options(ctx: StepContext, robots: np.ndarray, choice: np.ndarray, 
     Returns ``(candidates (m, k) vertex ids, options (m, k) bool, unvisited (m, k) bool)``.
     """
     here = ctx.pos[robots]
-    cand = ctx.grid.neighbours[here]
-    cand = np.where(cand >= 0, cand, 0)
-    options = ctx.sensing.edge_sensed_ok[here] & ~ctx.maps.test(2, robots, cand)
+    cand = ctx.grid.candidates[here]
+    words, masks = ctx.grid.candidate_words
+    words, masks = words[here], masks[here]
+    options = ctx.sensing.edge_sensed_ok[here] & ~ctx.maps.test_words(2, robots, words, masks)
     aware = ctx.aware[robots]
     if aware.any():
         occupied = ((cand[:, :, None] == ctx.pos[None, None, :]) & aware[:, None, :]).any(axis=-1)
         told = ctx.links[robots] & decided[None, :]
         taken = ((cand[:, :, None] == choice[None, None, :]) & told[:, None, :]).any(axis=-1)
         options &= ~occupied & ~taken
-    unvisited = options & ~ctx.maps.test(0, robots, cand)
+    unvisited = options & ~ctx.maps.test_words(0, robots, words, masks)
     return cand, options, unvisited
 
 

@@ -78,6 +78,17 @@ class Grid:
         return np.where((self.neighbours >= 0)[:, :, None], vec / self.a, 0.0)
 
     @cached_property
+    def candidates(self) -> np.ndarray:
+        """``neighbours`` with ``-1`` padding replaced by vertex 0 (masked by ``edge_ok`` / sensing)."""
+        return np.maximum(self.neighbours, 0)
+
+    @cached_property
+    def candidate_words(self) -> tuple[np.ndarray, np.ndarray]:
+        """Word index and bit mask of every candidate in a vertex bit set (see :mod:`.knowledge`)."""
+        cand = self.candidates
+        return cand >> 6, np.uint64(1) << (cand & 63).astype(np.uint64)
+
+    @cached_property
     def components(self) -> np.ndarray:
         """Connected-component label of every vertex in the graph of travellable edges."""
         src, slot = np.nonzero(self.edge_ok)

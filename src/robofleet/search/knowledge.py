@@ -41,6 +41,10 @@ class RobotMaps:
         words = self.layers[robots[:, None], layer, vertices >> 6]
         return ((words >> (vertices & 63).astype(np.uint64)) & ONE).astype(bool)
 
+    def test_words(self, layer: int, robots: np.ndarray, words: np.ndarray, masks: np.ndarray) -> np.ndarray:
+        """Like :meth:`test` with the word indices and bit masks of the vertices precomputed."""
+        return (self.layers[robots[:, None], layer, words] & masks) != 0
+
     def set(self, layer: int, robots: np.ndarray, vertices: np.ndarray) -> None:
         """Set the bits of ``layer`` for the pairs ``(robots[j], vertices[j])``."""
         robots = np.asarray(robots, dtype=np.intp).ravel()

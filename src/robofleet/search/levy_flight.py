@@ -86,9 +86,9 @@ class LevyFlightPolicy:
         if len(ending):
             self.new_flights(ending, z, u, first)
         here = ctx.pos[robots]
-        cand = ctx.grid.neighbours[here]
-        cand = np.where(cand >= 0, cand, 0)
-        options = ctx.sensing.edge_sensed_ok[here] & ~ctx.maps.test(2, robots, cand)
+        cand = ctx.grid.candidates[here]
+        words, masks = ctx.grid.candidate_words
+        options = ctx.sensing.edge_sensed_ok[here] & ~ctx.maps.test_words(2, robots, words[here], masks[here])
         sensed = ctx.sensed[robots]
         if sensed.any():
             options &= ~((cand[:, :, None] == ctx.pos[None, None, :]) & sensed[:, None, :]).any(axis=-1)

@@ -24,10 +24,11 @@ class RandomUnvisitedPolicy:
     def choose(self, ctx: StepContext) -> tuple[np.ndarray, int]:
         robots = np.flatnonzero(ctx.active)
         here = ctx.pos[robots]
-        cand = ctx.grid.neighbours[here]
-        cand = np.where(cand >= 0, cand, 0)
-        options = ctx.sensing.edge_sensed_ok[here] & ~ctx.maps.test(2, robots, cand)
-        unvisited = options & ~ctx.maps.test(0, robots, cand)
+        cand = ctx.grid.candidates[here]
+        words, masks = ctx.grid.candidate_words
+        words, masks = words[here], masks[here]
+        options = ctx.sensing.edge_sensed_ok[here] & ~ctx.maps.test_words(2, robots, words, masks)
+        unvisited = options & ~ctx.maps.test_words(0, robots, words, masks)
         pool = np.where(unvisited.any(axis=1, keepdims=True), unvisited, options)
         u = ctx.streams.uniforms()
         choice = ctx.pos.copy()

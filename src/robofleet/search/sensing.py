@@ -48,6 +48,12 @@ class SensingTables:
     exact: bool
     wall_push: np.ndarray
 
+    def step2_rows(self, situation: int) -> np.ndarray:
+        """``(V, 3, W)``: what step 2 adds to the visited / discovered / blocked layers of a
+        robot standing on each vertex (situation 2 also records inaccessible neighbours as visited)."""
+        visited = self.self_bits | self.inaccessible_bits if situation == 2 else self.self_bits
+        return np.stack([visited, self.free_bits, self.inaccessible_bits], axis=1)
+
 
 def build_sensing(grid: Grid, targets: np.ndarray, r_so: float, r_st: float) -> SensingTables:
     """Precompute what a robot senses on every vertex (O(V·k + V·T))."""

@@ -142,6 +142,8 @@ class SearchRun:
         self.fixed_rotation = timing.rotation_mode == "fixed"
         self.step_seconds = timing.rotation_seconds + self.translate_seconds
         self.penalty = timing.collision_penalty_moves * timing.move_time(grid.a)
+        self.step2_rows = problem.sensing.step2_rows(problem.situation)
+        self.occupied = np.zeros(grid.n_vertices, dtype=bool)
         self.record = record
         self.events: list[dict] = []
         self.trail = [self.pos.copy()] if record else None
@@ -164,11 +166,7 @@ class SearchRun:
                 for t in np.flatnonzero(new):
                     self.event(step, "target_found", robot=int(live[np.argmax(seen[:, t])]), target=int(t))
             maps.broadcast_targets(seen.any(axis=0), live)
-        inaccessible = p.sensing.inaccessible_bits[here]
-        own = p.sensing.self_bits[here]
-        maps.merge_rows(0, live, own | inaccessible if p.situation == 2 else own)
-        maps.merge_rows(1, live, p.sensing.free_bits[here])
-        maps.merge_rows(2, live, inaccessible)
+        maps.layers[live] |= self.step2_rows[here]
 
     def detect_failures(self, step: int, dist_ok: np.ndarray) -> None:
         """Step 3 failure information: live robots near a silent robot block its vertex."""
@@ -199,7 +197,7 @@ class SearchRun:
         if not p.sensing.exact:
             choice = self.bump(step, choice)
         moving = choice != self.pos
-        pairs = collision_pairs(self.pos, choice) if self.n > 1 else ()
+        pairs = collision_pairs(self.pos, choice) if self.n > 1 and self.may_collide(choice) else ()
         for i, j in pairs:
             self.event(step, "collision", robots=[int(i), int(j)], vertex=int(choice[i]))
         self.counts["collisions"] += len(pairs)
@@ -217,6 +215,16 @@ class SearchRun:
         if self.record:
             self.trail.append(self.pos.copy())
             self.clock.append(self.time)
+
+    def may_collide(self, choice: np.ndarray) -> bool:
+        """Cheap pre-check: a repeated destination, or a robot moving onto an occupied vertex."""
+        ordered = np.sort(choice)
+        if (ordered[1:] == ordered[:-1]).any():
+            return True
+        self.occupied[self.pos] = True
+        into = self.occupied[choice[choice != self.pos]].any()
+        self.occupied[self.pos] = False
+        return bool(into)
 
     def turn_and_translate(self, moving: np.ndarray, choice: np.ndarray) -> float:
         """Duration of the slowest robot: trapezoidal rotation to the edge, then translation."""
