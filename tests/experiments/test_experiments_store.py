@@ -11,7 +11,7 @@ from hypothesis import strategies as st
 
 from robofleet.core.errors import ConfigError
 from robofleet.experiments import ResultStore, deterministic_columns
-from robofleet.experiments.store import check_tasks, file_stem
+from robofleet.experiments.store import RUN_PREFIX, SUFFIX, check_tasks, file_stem
 from urllib.parse import unquote
 
 
@@ -105,7 +105,8 @@ def test_schemas_differing_between_files_are_unified(tmp_path):
 @given(st.text(min_size=1, max_size=60))
 def test_any_run_id_round_trips_through_a_file_name(run_id):
     stem = file_stem(run_id)
-    assert "/" not in stem and "\x00" not in stem and stem not in (".", "..")
+    name = RUN_PREFIX + stem + SUFFIX  # what is written; never "." or ".." thanks to the prefix
+    assert "/" not in name and "\x00" not in name and not name.startswith(".")
     assert unquote(stem) == run_id
 
 

@@ -5,8 +5,8 @@ Every executor is a generator of ``(task, outcome)`` pairs yielded *as tasks com
 ``("ok", rows)`` or ``("error", message)``: an exception raised by the task function is
 caught where it ran and turned into a one-line message, so one failing task never stops
 the others. Only a bounded window of tasks is submitted ahead of the results
-(:data:`WINDOW_PER_WORKER` per worker), so memory stays flat on large sweeps and an
-interrupted sweep has little work in flight.
+(:data:`WINDOW_PER_WORKER` per worker, :data:`DASK_WINDOW_PER_WORKER` on Dask), so
+memory stays flat on large sweeps and an interrupted sweep has little work in flight.
 
 Determinism does not depend on the executor: a task's result depends only on the task
 (its ``seed`` included), never on which worker ran it or when.
@@ -28,6 +28,7 @@ from ..core.errors import ConfigError, RobofleetError
 Outcome = tuple[str, Any]
 TaskFn = Callable[[dict], "dict | list[dict]"]
 WINDOW_PER_WORKER = 4
+DASK_WINDOW_PER_WORKER = 16  # hides the scheduler round trip (measured: ~2x throughput on tiny tasks)
 
 
 class Executor(str, enum.Enum):
@@ -213,7 +214,7 @@ def dask_results(distributed, client, cluster, fn: TaskFn, tasks: list[dict], wo
     """Submit a bounded window of tasks to ``client``; yield results as they complete."""
     try:
         n_workers = len(client.scheduler_info().get("workers", {})) or workers or default_workers()
-        window = n_workers * WINDOW_PER_WORKER
+        window = n_workers * DASK_WINDOW_PER_WORKER
         pending = deque(tasks)
         in_flight: dict[Any, dict] = {}
         completed = distributed.as_completed()
