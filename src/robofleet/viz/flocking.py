@@ -1,0 +1,126 @@
+"""Plots and animations of the flocking family (paper 001, Figs. 9-11).
+
+Reads traces (leader at index 0 of ``positions``) and result tables only.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+import pandas as pd  # noqa: E402
+
+from .animation import frame_indices, save_gif  # noqa: E402
+
+
+def plot_delta_curves(curves: pd.DataFrame, path: str | Path) -> Path:
+    """Fig. 11: Δ_e(t) (top) and Δ_r(t) (bottom) per pattern; median and 10-90 % band over seeds.
+
+    ``curves`` has columns ``pattern, run_id, t, delta_e, delta_r, xi``.
+    """
+    known = ["wedge", "line", "spread", "random"]
+    found = list(dict.fromkeys(curves["pattern"]))
+    patterns = [p for p in known if p in found] + [p for p in found if p not in known]
+    fig, axes = plt.subplots(2, len(patterns), figsize=(3.6 * len(patterns), 6.0), sharex=True, squeeze=False)
+    for col, pattern in enumerate(patterns):
+        g = curves[curves["pattern"] == pattern]
+        for row, (key, label) in enumerate((("delta_e", "Δe"), ("delta_r", "Δr"))):
+            ax = axes[row, col]
+            table = g.pivot_table(index="t", columns="run_id", values=key)
+            q = table.quantile([0.1, 0.5, 0.9], axis=1).T.clip(lower=1e-2)
+            ax.fill_between(q.index, q[0.1], q[0.9], alpha=0.25, color="C0", lw=0, label="10-90 %")
+            ax.plot(q.index, q[0.5], color="C0", lw=1.4, label="median")
+            ax.axhline(g["xi"].median(), color="k", ls="--", lw=0.8, label="ξ (median)")
+            ax.set_yscale("log")
+            ax.set_title(f"{pattern}: {label}(t)  ({table.shape[1]} seeds)", fontsize=9)
+            if row == 1:
+                ax.set_xlabel("time (moves)")
+            if col == 0:
+                ax.set_ylabel(label)
+    axes[0, 0].legend(fontsize=7)
+    fig.tight_layout()
+    return _save(fig, path)
+
+
+def plot_trace(trace, path: str | Path, title: str | None = None) -> Path:
+    """Figs. 9-10: courses of the leader (black) and followers, start (○) and end (●) positions."""
+    pos = trace.positions
+    fig, ax = plt.subplots(figsize=(6.5, 6.5))
+    ax.plot(pos[:, 0, 0], pos[:, 0, 1], color="k", lw=2.0, label="leader")
+    for i in range(1, pos.shape[1]):
+        ax.plot(pos[:, i, 0], pos[:, i, 1], lw=0.8, color=f"C{i % 10}")
+    ax.scatter(pos[0, 1:, 0], pos[0, 1:, 1], facecolors="none", edgecolors="0.3", s=25, label="followers, start")
+    ax.scatter(pos[-1, 1:, 0], pos[-1, 1:, 1], color="0.2", s=14, label="followers, end")
+    _leader_marker(ax, pos[-1, 0], trace.arrays["leader_heading"][-1])
+    ax.set_aspect("equal")
+    r = trace.results
+    ax.set_title(title or f"{trace.metadata.get('name', '')}: Δe={r['delta_e_final']:.2f}, Δr={r['delta_r_final']:.2f}, ξ={r['xi']:.2f}", fontsize=9)
+    ax.legend(fontsize=7, loc="best")
+    return _save(fig, path)
+
+
+def plot_comparison(table: pd.DataFrame, path: str | Path) -> Path:
+    """Bars of the comparison table: share of runs with Δe ≤ ξ and mean slot changes."""
+    table = table.copy()
+    table["cell"] = table["pattern"] + "/" + table["scheduler"]
+    cells = list(dict.fromkeys(table["cell"]))
+    algs = list(dict.fromkeys(table["algorithm"]))
+    fig, axes = plt.subplots(1, 2, figsize=(11, 3.8))
+    width = 0.8 / len(algs)
+    for k, alg in enumerate(algs):
+        sub = table[table["algorithm"] == alg].set_index("cell").reindex(cells)
+        x = np.arange(len(cells)) + k * width
+        axes[0].bar(x, sub["Δe ≤ ξ: share"], width, label=alg)
+        axes[1].bar(x, sub["slot changes (mean)"], width, label=alg)
+    for ax, label in zip(axes, ("share of runs with Δe ≤ ξ at the end", "slot changes per run (mean)")):
+        ax.set_xticks(np.arange(len(cells)) + 0.4 - width / 2)
+        ax.set_xticklabels(cells, rotation=30, fontsize=8)
+        ax.set_title(label, fontsize=9)
+    axes[0].legend(fontsize=7)
+    fig.tight_layout()
+    return _save(fig, path)
+
+
+def animate_trace(trace, path: str | Path, fps: int = 15, max_frames: int = 150, tail: int = 60) -> Path:
+    """GIF of a run: leader (triangle), followers with trails, the slots of the estimated target."""
+    from ..flocking.metrics import estimated_target
+    from ..flocking.patterns import Pattern
+
+    pos = trace.positions
+    pattern = Pattern(np.asarray(trace.metadata["pattern"], dtype=float))
+    times = trace.arrays["time"]
+    frames = frame_indices(len(pos), max_frames)
+    lo, hi = pos.reshape(-1, 2).min(axis=0) - 20, pos.reshape(-1, 2).max(axis=0) + 20
+    fig, ax = plt.subplots(figsize=(5.5, 5.5))
+
+    def update(k: int):
+        ax.clear()
+        ax.set_xlim(lo[0], hi[0])
+        ax.set_ylim(lo[1], hi[1])
+        ax.set_aspect("equal")
+        start = max(0, k - tail)
+        for i in range(pos.shape[1]):
+            ax.plot(pos[start:k + 1, i, 0], pos[start:k + 1, i, 1], lw=0.7, color="k" if i == 0 else f"C{i % 10}")
+        slots = estimated_target(pattern, pos[k, 0], pos[k, 1:])
+        ax.scatter(slots[:, 0], slots[:, 1], facecolors="none", edgecolors="0.5", s=40)
+        ax.scatter(pos[k, 1:, 0], pos[k, 1:, 1], c=[f"C{i % 10}" for i in range(1, pos.shape[1])], s=18)
+        _leader_marker(ax, pos[k, 0], trace.arrays["leader_heading"][k])
+        ax.set_title(f"t = {times[k]:.0f}   Δe = {trace.arrays['delta_e'][k]:.1f}   Δr = {trace.arrays['delta_r'][k]:.1f}", fontsize=9)
+
+    return save_gif(fig, update, frames, path, fps=fps)
+
+
+def _leader_marker(ax, point, heading) -> None:
+    ax.plot(point[0], point[1], marker=(3, 0, np.degrees(heading) - 90), markersize=11, color="k", ls="none")
+
+
+def _save(fig, path) -> Path:
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
