@@ -62,12 +62,12 @@ class MPCConfig(SpecModel):
     """Parameters of the B-UAVC MPC."""
 
     horizon: int = Field(10, gt=0, description="N, number of predicted steps")
-    max_constraints: int = Field(24, gt=0, description="cell rows the problem is built for")
+    max_constraints: int = Field(12, gt=0, description="cell rows the problem is built for")
     input_weight: float = Field(1e-3, ge=0, description="w_u")
     deadlock_steps: int = Field(20, gt=0, description="n_dead")
     deadlock_progress: float = Field(0.05, ge=0, description="Δp_min [m] over n_dead steps")
     recover_steps: int = Field(10, gt=0, description="steps with the rotated goal")
-    max_iter: int = Field(50, gt=0, description="IPOPT iteration cap (nonlinear models)")
+    max_iter: int = Field(30, gt=0, description="IPOPT iteration cap (nonlinear models)")
 
 
 class SingleIntegratorParams(SpecModel):
@@ -198,9 +198,10 @@ class BuavcMPC:
         else:
             self._solver = ca.nlpsol("buavc_mpc", "ipopt", problem, {
                 "print_time": False, "error_on_fail": False,
-                "ipopt": {"print_level": 0, "sb": "yes", "max_iter": self.config.max_iter, "tol": 1e-6,
-                          "acceptable_tol": 1e-4, "acceptable_iter": 3, "warm_start_init_point": "yes",
-                          "mu_init": 1e-2, "warm_start_bound_push": 1e-6, "warm_start_mult_bound_push": 1e-6},
+                "ipopt": {"print_level": 0, "sb": "yes", "max_iter": self.config.max_iter, "tol": 1e-4,
+                          "acceptable_tol": 1e-3, "acceptable_iter": 1, "warm_start_init_point": "yes",
+                          "mu_init": 1e-3, "mu_strategy": "adaptive", "warm_start_bound_push": 1e-9,
+                          "warm_start_mult_bound_push": 1e-9},
             })
 
     # ------------------------------------------------------------------ per-step solve
