@@ -68,3 +68,17 @@ def test_cli_run_validate_and_sweep_on_circle_swap(tmp_path, robofleet_bin):
     sweep = subprocess.run([str(robofleet_bin), "sweep", str(small_sweep(tmp_path)), "--executor", "serial", "--out", str(tmp_path / "s")], capture_output=True, text=True)
     assert sweep.returncode == 0, sweep.stderr
     assert f"results: {tmp_path / 's'}/ (8 runs, 0 failed)" in sweep.stdout
+
+
+def test_run_animate_writes_a_gif_through_the_family_viz(tmp_path):
+    from PIL import Image
+
+    from robofleet.cli.main import main
+
+    small = tmp_path / "tiny.yaml"
+    doc = yaml.safe_load(CIRCLE.read_text())
+    doc["robots"]["n"], doc["max_steps"] = 3, 12
+    small.write_text(yaml.safe_dump(doc))
+    main(["run", str(small), "--out", str(tmp_path / "r"), "--animate", "--quiet"])
+    with Image.open(tmp_path / "r" / "animation.gif") as gif:
+        assert gif.n_frames == 13  # one frame per recorded step (initial state included)

@@ -198,3 +198,12 @@ def test_ctrl_c_on_a_process_sweep_keeps_finished_runs_and_records_no_failures(t
     result = ResultStore(store)
     assert 4 <= len(result.finished_ids()) < 60
     assert result.failed_ids() == set() and result.temporary_files() == []
+
+
+def test_missing_dask_gives_a_clear_error(tmp_path, monkeypatch):
+    from robofleet.core.errors import RobofleetError
+
+    monkeypatch.setitem(sys.modules, "distributed", None)  # makes `import distributed` fail
+    with pytest.raises(RobofleetError, match=r"pip install 'robofleet\[dask\]'"):
+        run_tasks(noisy_sum, make_tasks(1), tmp_path, executor="dask", progress=False)
+    assert not tmp_path.joinpath("run-t000.parquet").exists()
