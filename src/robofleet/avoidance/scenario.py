@@ -235,14 +235,36 @@ def fixed_layout(spec: Spec) -> tuple[np.ndarray, np.ndarray]:
     return starts + lay.center, -starts + lay.center
 
 
+def start_clearances(spec: Spec) -> tuple[float, float, float]:
+    """Centre distances a sampled start or goal keeps from other robots, obstacles and the
+    bounds so that it lies inside its own initial B-UAVC (the premise of the guarantee).
+
+    Robots: ``2 (r_s + Φ⁻¹(√(1 − δ)) σ)``; obstacles: ``r_s + Φ⁻¹(√(1 − δ)) σ + r_ε σ_o``
+    (r_ε the ε-shadow radius); bounds: ``r_s + Φ⁻¹(√(1 − δ)) σ`` — with σ, σ_o the largest
+    standard deviations of Σ, Σ_o. They depend on the scenario's noise and δ, not on the
+    method, so every method of a comparison starts from the same positions.
+    """
+    from scipy.stats import chi2
+    from scipy.special import ndtri
+
+    q = float(ndtri(np.sqrt(1.0 - spec.delta)))
+    sigma = float(np.sqrt(max(np.linalg.eigvalsh(spec.robots.covariance()).max(), 0.0)))
+    sigma_o = float(np.sqrt(max(np.linalg.eigvalsh(spec.workspace.obstacle_covariance()).max(), 0.0)))
+    eps = 1.0 - np.sqrt(1.0 - spec.delta)
+    own = spec.robots.radius + q * sigma
+    return 2 * own, own + float(np.sqrt(chi2.ppf(1.0 - eps, 2))) * sigma_o, own
+
+
 def sample_layout(spec: Spec, rng: np.random.Generator, max_tries: int = 10_000) -> tuple[np.ndarray, np.ndarray]:
     """Starts and goals: fixed layouts as given; ``antipodal`` sampled as in the authors'
     setup (robot i at a random angle within its own sector of width 2π/n, radius
-    U(r_min, r_max), goal = −start), rejection-sampled robot by robot so that no two starts
-    or goals overlap and none touches an obstacle or leaves the workspace."""
-    lay, n, r = spec.robots.layout, spec.robots.n, spec.robots.radius
+    U(r_min, r_max), goal = −start), rejection-sampled robot by robot so that every start
+    and goal keeps the clearances of :func:`start_clearances` from the others, the
+    obstacles and the bounds."""
+    lay, n = spec.robots.layout, spec.robots.n
     if lay.kind != "antipodal":
         return fixed_layout(spec)
+    robot_gap, obstacle_gap, wall_gap = start_clearances(spec)
     ws = spec.workspace.build()
     center = np.asarray(lay.center)
     starts = np.zeros((n, 2))
@@ -253,9 +275,9 @@ def sample_layout(spec: Spec, rng: np.random.Generator, max_tries: int = 10_000)
             s = rad * np.array([np.cos(ang), np.sin(ang)])
             cand = np.array([center + s, center - s])
             prev = np.vstack([center + starts[:i], center - starts[:i]])
-            if len(prev) and np.min(np.linalg.norm(prev[:, None] - cand[None], axis=-1)) < 2 * r:
+            if len(prev) and np.min(np.linalg.norm(prev[:, None] - cand[None], axis=-1)) < robot_gap:
                 continue
-            if np.min(ws.boundary_distance(cand)) < r or np.min(ws.obstacle_distance(cand)) < r:
+            if np.min(ws.boundary_distance(cand)) < wall_gap or np.min(ws.obstacle_distance(cand)) < obstacle_gap:
                 continue
             starts[i] = s
             break
