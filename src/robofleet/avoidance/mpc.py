@@ -49,7 +49,9 @@ from .braking import braking_control
 ModelName = Literal["single_integrator", "double_integrator", "unicycle", "quadrotor"]
 MODEL_NAMES = ("single_integrator", "double_integrator", "unicycle", "quadrotor")
 _POLYGON_SIDES = 8
-_CELL_TOL = 1e-6
+_CELL_TOL = 1e-9
+CELL_MARGIN = 1e-4  # the solver sees the cell shrunk by this much, so that a plan within the
+#                     solver's constraint tolerance lies in the true cell (checked before use)
 QP_SOLVER = "qpoases"
 QP_OPTIONS = {
     "qrqp": {"print_iter": False, "print_header": False, "print_info": False, "error_on_fail": False},
@@ -224,7 +226,7 @@ class BuavcMPC:
         (already padded to ``max_constraints``). Returns ``(u_0, predicted positions (N+1, d))``,
         or ``(None, None)`` when the solver fails or its plan leaves the cell."""
         m, N = self.model, self.config.horizon
-        p = np.concatenate([state, goal, A.T.ravel(), b])  # casadi reshape is column-major
+        p = np.concatenate([state, goal, A.T.ravel(), b - CELL_MARGIN])  # casadi reshape is column-major
         z0 = self._initial_guess(robot, state)
         with quiet_stdout() if self._first_solve else contextlib.nullcontext():  # and on first use
             sol = self._solver(x0=z0, p=p, lbx=self._lbz, ubx=self._ubz, lbg=self._lbg, ubg=self._ubg, lam_g0=self._lam_g[robot])
