@@ -200,8 +200,8 @@ class BuavcMPC:
         else:
             self._solver = ca.nlpsol("buavc_mpc", "ipopt", problem, {
                 "print_time": False, "error_on_fail": False,
-                "ipopt": {"print_level": 0, "sb": "yes", "max_iter": self.config.max_iter, "tol": 1e-4,
-                          "acceptable_tol": 1e-3, "acceptable_iter": 1, "warm_start_init_point": "yes",
+                "ipopt": {"print_level": 0, "sb": "yes", "max_iter": self.config.max_iter, "tol": 1e-6,
+                          "acceptable_tol": 1e-4, "acceptable_iter": 2, "warm_start_init_point": "yes",
                           "mu_init": 1e-3, "mu_strategy": "adaptive", "warm_start_bound_push": 1e-9,
                           "warm_start_mult_bound_push": 1e-9},
             })
