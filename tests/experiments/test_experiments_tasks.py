@@ -207,3 +207,8 @@ def test_missing_dask_gives_a_clear_error(tmp_path, monkeypatch):
     with pytest.raises(RobofleetError, match=r"pip install 'robofleet\[dask\]'"):
         run_tasks(noisy_sum, make_tasks(1), tmp_path, executor="dask", progress=False)
     assert not tmp_path.joinpath("run-t000.parquet").exists()
+
+
+def test_process_executor_rejects_a_function_workers_cannot_import(tmp_path):
+    with pytest.raises(ConfigError, match="fn: expected a module-level function"):
+        run_tasks(lambda task: {"x": 1}, make_tasks(2), tmp_path, executor="process", progress=False)

@@ -17,6 +17,7 @@ from __future__ import annotations
 import enum
 import logging
 import os
+import pickle
 import signal
 from collections import deque
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
@@ -100,8 +101,18 @@ def execute(fn: TaskFn, tasks: list[dict], executor: str | Executor = "process",
     if kind is Executor.serial:
         return run_serial(fn, tasks)
     if kind is Executor.process:
+        check_picklable(fn)
         return run_processes(fn, tasks, check_workers(workers))
     return run_dask(fn, tasks, scheduler, None if workers is None else check_workers(workers))
+
+
+def check_picklable(fn: TaskFn) -> None:
+    """Worker processes receive ``fn`` by reference: it must be a module-level function
+    (or a ``functools.partial`` of one)."""
+    try:
+        pickle.dumps(fn)
+    except (pickle.PicklingError, AttributeError, TypeError) as exc:
+        raise ConfigError(f"fn: expected a module-level function that worker processes can import, received {fn!r} ({one_line(exc)})") from None
 
 
 def run_serial(fn: TaskFn, tasks: list[dict]) -> Iterator[tuple[dict, Outcome]]:
