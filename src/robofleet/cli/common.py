@@ -17,7 +17,8 @@ from rich.table import Table
 
 from ..core.errors import RobofleetError
 
-MAX_TABLE_COLUMNS = 5
+MIN_TABLE_COLUMNS = 3  # value columns shown however narrow the terminal
+COLUMN_WIDTH = 11  # characters a numeric column needs to stay readable
 PREFERRED_COLUMNS = ("success", "collisions", "min_pair_distance", "makespan", "mean_travel_time")
 
 
@@ -97,7 +98,9 @@ def sweep_command(
     leading = list(means.columns[: len(frame.attrs["grid"]) + 2])
     values = [c for c in means.columns if c not in leading]
     values = [c for c in PREFERRED_COLUMNS if c in values] + [c for c in values if c not in PREFERRED_COLUMNS]
-    Console().print(frame_table(means[leading + values], "means per parameter combination", leading=len(leading)))
+    console = Console()
+    fits = max(MIN_TABLE_COLUMNS, console.width // COLUMN_WIDTH - len(leading))
+    console.print(frame_table(means[leading + values], "means per parameter combination", leading=len(leading), values=fits))
     if failed:
         first = frame.loc[frame["error"].notna(), ["run_id", "error"]].iloc[0]
         typer.echo(f"first failure: run {first['run_id']}: {first['error']}")
@@ -118,11 +121,11 @@ def key_value_table(mapping: dict, title: str) -> Table:
     return table
 
 
-def frame_table(frame, title: str, leading: int = 0) -> Table:
-    """A rich table of a small DataFrame: its first ``leading`` columns (grid values, counts)
-    and at most :data:`MAX_TABLE_COLUMNS` more."""
+def frame_table(frame, title: str, leading: int = 0, values: int = MIN_TABLE_COLUMNS) -> Table:
+    """A rich table of a small DataFrame: its first ``leading`` columns (grid values,
+    counts) and at most ``values`` more."""
     columns = list(frame.columns)
-    shown = columns[: leading + MAX_TABLE_COLUMNS]
+    shown = columns[: leading + values]
     note = "" if len(shown) == len(columns) else f" ({len(shown)} of {len(columns)} columns; all in the store)"
     table = Table(title=title + note)
     for column in shown:
