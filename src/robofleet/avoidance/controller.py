@@ -6,9 +6,14 @@ and commands ``u = min(v_max, ‖g* − p̂‖/Δt) · (g* − p̂)/‖g* − p�
 empty or once the robot has reached its goal, after which it holds its position).
 
 Deadlock detection (ours, documented): a robot that has not arrived is deadlocked when,
-over the last ``window`` steps, its estimated distance to the goal shrank by less than
-``progress_fraction · v_max · window · Δt`` (estimates are noisy, so a window is used
-instead of a single-step test), or when its projected goal coincides with its estimate.
+over the last ``window`` steps of normal driving, its estimated distance to the goal
+shrank by less than ``progress_fraction · v_max · window · Δt`` (estimates are noisy, so a
+window is used instead of a single-step test), or when its projected goal coincides with
+its estimate (an empty cell, where it holds still, does not count). The window restarts
+when a recovery starts, so the recovery's own steps count towards the next window: a
+recovery that did not lead to progress triggers the next one quickly (measured: in the
+ten-box layout, 30 seeds, 75 % of robots arrive, against 52 % when recovery steps are
+excluded).
 Recovery (appendix C): if an obstacle constraint is active at ``g*``, head for the vertex
 of that obstacle grown by ``r_s`` that minimises ``‖p̂ − v‖ + ‖v − g‖``, until the robot is
 there (at most ``4 · recover_steps`` steps). The caller grows the obstacles by the whole
@@ -95,7 +100,7 @@ def single_integrator_control(
     speed = np.minimum(v_max, dist / dt)
     u = np.where(dist[:, None] > 1e-12, delta * (speed / np.maximum(dist, 1e-300))[:, None], 0.0)
     u[state.arrived] = 0.0
-    stuck = _detect_deadlock(goal_dist, dist, state, v_max, dt, deadlock)
+    stuck = _detect_deadlock(goal_dist, np.where(proj.empty, np.inf, dist), state, v_max, dt, deadlock)
     if deadlock.enabled and stuck.any():
         _start_recovery(stuck, estimates, goals, cells, proj.active, state, deadlock, grown_obstacles)
     reached = (state.mode == VERTEX) & (np.linalg.norm(state.target - estimates, axis=1) <= max(goal_tolerance, float(np.max(v_max)) * dt))
@@ -126,7 +131,7 @@ def _detect_deadlock(goal_dist, move_dist, state: ControllerState, v_max, dt, pa
         return np.zeros(len(goal_dist), bool)
     min_progress = params.progress_fraction * v_max * len(hist) * dt
     slow = np.isfinite(before) & (before - goal_dist < min_progress)
-    sitting = move_dist < 1e-9
+    sitting = move_dist < 1e-9  # projected goal at the estimate (an empty cell passes inf)
     stuck = (slow | sitting) & ~state.arrived & (state.mode == NORMAL)
     hist[:, stuck] = np.nan  # restart the window after a recovery
     state.deadlocks += stuck
