@@ -54,3 +54,13 @@ def test_situation1_with_failure_still_finds_all_targets():
         trace = simulate(spec, seed=seed)
         check_step_invariants(trace, spec)
         assert trace.results["found_targets"] == 4 and trace.results["completed"]
+
+
+def test_random_failure_injection_is_seeded():
+    spec = small_spec(**{"situation": 2, "robots.count": 4, "random_failures": {"count": 2, "within_steps": 6}})
+    a, b = simulate(spec, seed=5), simulate(spec, seed=5)
+    fails = [e for e in a.events if e["kind"] == "failure"]
+    assert fails == [e for e in b.events if e["kind"] == "failure"]
+    assert len(fails) == 2 and all(e["step"] < 6 for e in fails)
+    check_step_invariants(a, spec)
+    assert a.results["completed"]

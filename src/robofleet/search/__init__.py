@@ -13,10 +13,10 @@ translation), :mod:`.random_baseline` (RU), :mod:`.levy_flight` (LFP),
 
 from .assumptions import AssumptionReport, check_assumptions
 from .grids import Grid, GridKind, build_grid
-from .simulation import LABELS, Algorithm, SearchOutcome, SearchProblem, run_search
+from .simulation import LABELS, Algorithm, SearchOutcome, SearchProblem, run_search, run_search_batch
 from .timing import MotionTiming
 
 __all__ = [
     "AssumptionReport", "check_assumptions", "Grid", "GridKind", "build_grid", "LABELS", "Algorithm",
-    "SearchOutcome", "SearchProblem", "run_search", "MotionTiming",
+    "SearchOutcome", "SearchProblem", "run_search", "run_search_batch", "MotionTiming",
 ]

@@ -26,7 +26,7 @@ Paper 002, Section 4.1 step 4 and Section 4.2 (step 5):
 
 Every quantity a robot uses is its own row: its map (:class:`~.knowledge.RobotMaps`), its
 sensing at its vertex, the positions and choices its neighbours sent, and its own random
-stream. Complexity per step: O(rounds · m · k · n) for m robots per round.
+stream. Complexity per step: O(rounds · m · k · n) for m robots per round and n robots per run.
 """
 
 from __future__ import annotations
@@ -38,20 +38,20 @@ from .policy import StepContext, pick_uniform
 
 
 def choice_rounds(rank: np.ndarray, links: np.ndarray, active: np.ndarray) -> np.ndarray:
-    """Round of every active robot in the sequential choice of step 4.
+    """Round of every active robot in the sequential choice of step 4, per run.
 
-    ``rank (n,)``: choice priority of each robot's vertex (higher chooses first);
-    ``links (n, n)``: communication neighbours. ``round[i] = 0`` when no higher-priority
-    neighbour exists, else ``1 + max(round[j])`` over them (the longest waiting chain).
-    Inactive robots get ``-1``.
+    ``rank (R, n)``: choice priority of each robot's vertex (higher chooses first);
+    ``links (R, n, n)``: communication neighbours; ``active (R, n)``. ``round[i] = 0`` when
+    no higher-priority neighbour exists, else ``1 + max(round[j])`` over them (the longest
+    waiting chain). Inactive robots get ``-1``.
     """
-    n = len(rank)
-    if not links.any():
+    n = rank.shape[-1]
+    waits_for = links & (rank[:, None, :] > rank[:, :, None]) & active[:, None, :] & active[:, :, None]
+    if not waits_for.any():
         return np.where(active, 0, -1)
-    waits_for = links & (rank[None, :] > rank[:, None]) & active[None, :] & active[:, None]
-    level = np.zeros(n, dtype=np.intp)
+    level = np.zeros(rank.shape, dtype=np.intp)
     for _ in range(n):
-        new = np.where(waits_for, level[None, :] + 1, 0).max(axis=1, initial=0)
+        new = np.where(waits_for, level[:, None, :] + 1, 0).max(axis=2, initial=0)
         if np.array_equal(new, level):
             break
         level = new
@@ -68,11 +68,11 @@ def neighbour_options(ctx: StepContext, robots: np.ndarray, choice: np.ndarray, 
     words, masks = ctx.grid.candidate_words
     words, masks = words[here], masks[here]
     options = ctx.sensing.edge_sensed_ok[here] & ~ctx.maps.test_words(2, robots, words, masks)
-    aware = ctx.aware[robots]
+    aware = ctx.rows(ctx.aware, robots)
     if aware.any():
-        occupied = ((cand[:, :, None] == ctx.pos[None, None, :]) & aware[:, None, :]).any(axis=-1)
-        told = ctx.links[robots] & decided[None, :]
-        taken = ((cand[:, :, None] == choice[None, None, :]) & told[:, None, :]).any(axis=-1)
+        occupied = ((cand[:, :, None] == ctx.peers(ctx.pos, robots)[:, None, :]) & aware[:, None, :]).any(axis=-1)
+        told = ctx.rows(ctx.links, robots) & ctx.peers(decided, robots)
+        taken = ((cand[:, :, None] == ctx.peers(choice, robots)[:, None, :]) & told[:, None, :]).any(axis=-1)
         options &= ~occupied & ~taken
     unvisited = options & ~ctx.maps.test_words(0, robots, words, masks)
     return cand, options, unvisited
@@ -82,8 +82,9 @@ def farthest_from_average(ctx: StepContext, robots: np.ndarray, cand: np.ndarray
                           choice: np.ndarray, decided: np.ndarray) -> np.ndarray:
     """Rule (2): keep the options at maximum distance from ``p_i,ave(k)`` (Definition 2.2)."""
     reported = np.where(decided, choice, ctx.pos)
-    weights = ctx.links[robots].astype(float)
-    p_ave = weights @ ctx.grid.points[reported] / weights.sum(axis=1, keepdims=True)
+    weights = ctx.rows(ctx.links, robots).astype(float)
+    points = ctx.grid.points[ctx.peers(reported, robots)]
+    p_ave = np.einsum("mn,mnd->md", weights, points) / weights.sum(axis=1, keepdims=True)
     d = np.linalg.norm(ctx.grid.points[cand] - p_ave[:, None, :], axis=-1)
     d = np.where(pool, d, -np.inf)
     return pool & (d >= d.max(axis=1, keepdims=True) - EPS)
@@ -99,11 +100,13 @@ class SequentialPolicy:
     def __init__(self, repulsion: bool):
         self.repulsion = repulsion
 
-    def choose(self, ctx: StepContext) -> tuple[np.ndarray, int]:
-        """Steps 4–5 for all active robots; returns ``(choices (n,), number of rounds)``."""
+    def choose(self, ctx: StepContext) -> tuple[np.ndarray, np.ndarray]:
+        """Steps 4–5 for all active robots; returns ``(choices (R·n,), rounds per run (R,))``."""
         choice = ctx.pos.copy()
         decided = ~ctx.active
-        rounds = choice_rounds(ctx.grid.priority[ctx.pos], ctx.links, ctx.active)
+        n = ctx.n
+        per_run = choice_rounds(ctx.grid.priority[ctx.pos].reshape(-1, n), ctx.links, ctx.active.reshape(-1, n))
+        rounds = per_run.ravel()
         u = ctx.streams.uniforms()
         n_rounds = int(rounds.max(initial=-1)) + 1
         for r in range(n_rounds):
@@ -111,19 +114,20 @@ class SequentialPolicy:
             cand, options, unvisited = neighbour_options(ctx, robots, choice, decided)
             pool = np.where(unvisited.any(axis=1, keepdims=True), unvisited, options)
             if self.repulsion:
-                social = ctx.links[robots].any(axis=1)
+                social = ctx.rows(ctx.links, robots).any(axis=1)
                 if social.any():
                     far = farthest_from_average(ctx, robots[social], cand[social], pool[social], choice, decided)
                     pool[social] = far
             choice[robots] = pick_uniform(cand, pool, u[robots], ctx.pos[robots])
             decided[robots] = True
             self.broadcast(ctx, robots, choice)
-        return choice, n_rounds
+        return choice, per_run.max(axis=1) + 1
 
     @staticmethod
     def broadcast(ctx: StepContext, robots: np.ndarray, choice: np.ndarray) -> None:
         """The chooser adds its choice to its map and sends it to its neighbours (step 5)."""
-        senders, receivers = np.nonzero(ctx.links[robots])
+        senders, local = np.nonzero(ctx.rows(ctx.links, robots))
+        receivers = ctx.peer_ids(robots[senders], local)
         if len(senders):
             ctx.maps.set(0, np.concatenate([robots, receivers]), np.concatenate([choice[robots], choice[robots[senders]]]))
         else:

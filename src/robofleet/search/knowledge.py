@@ -65,20 +65,25 @@ class RobotMaps:
     def exchange(self, links: np.ndarray) -> None:
         """Step 3: every robot ORs in the maps of its communication neighbours.
 
-        ``links (n, n)`` bool: ``links[i, j]`` when ``i`` receives ``j``'s message this
-        step (``j ∈ N_c,i(k)``, both alive). One hop per step, as in the paper's temporary
-        ad-hoc networks.
+        ``links (R, n, n)`` bool, one block per independent run: ``links[r, i, j]`` when
+        robot ``i`` receives robot ``j``'s message this step (``j ∈ N_c,i(k)``, both alive).
+        One hop per step, as in the paper's temporary ad-hoc networks.
         """
         if not links.any():
             return
-        merged = np.where(links[:, :, None, None], self.layers[None], np.uint64(0))
-        self.layers |= np.bitwise_or.reduce(merged, axis=1)
-        self.targets |= (links[:, :, None] & self.targets[None]).any(axis=1)
+        runs, n = links.shape[0], links.shape[1]
+        layers = self.layers.reshape(runs, n, *self.layers.shape[1:])
+        merged = np.where(links[:, :, :, None, None], layers[:, None], np.uint64(0))
+        layers |= np.bitwise_or.reduce(merged, axis=2)
+        targets = self.targets.reshape(runs, n, -1)
+        targets |= (links[:, :, :, None] & targets[:, None]).any(axis=2)
 
     def broadcast_targets(self, found: np.ndarray, receivers: np.ndarray) -> None:
-        """Steps 1 and 8: a robot that finds a target broadcasts its position to all robots."""
-        if found.any():
-            self.targets[receivers] |= found
+        """Steps 1 and 8: a robot that finds a target broadcasts its position to all robots.
+
+        ``found (m, T)``: the targets to announce to each of ``receivers (m,)``.
+        """
+        self.targets[receivers] |= found
 
     def frontier_empty(self) -> np.ndarray:
         """Stop rule (4) per robot: no discovered vertex is still unvisited and unblocked."""

@@ -68,16 +68,16 @@ class LevyFlightPolicy:
         d[:, 0] = np.cos(self.heading[robots])
         d[:, 1] = np.sin(self.heading[robots])
         push = ctx.sensing.wall_push[here]
-        sensed = ctx.sensed[robots]
+        sensed = ctx.rows(ctx.sensed, robots)
         if sensed.any():
             pts = ctx.grid.points
-            diff = pts[here][:, None, :] - pts[ctx.pos][None, :, :]
+            diff = pts[here][:, None, :] - pts[ctx.peers(ctx.pos, robots)]
             dist2 = np.einsum("mnd,mnd->mn", diff, diff)
             inv = np.where(sensed & (dist2 > 0), 1.0 / np.where(dist2 > 0, dist2, 1.0), 0.0)
             push = push + np.einsum("mn,mnd->md", inv, diff)
         return d + self.repulsion * push
 
-    def choose(self, ctx: StepContext) -> tuple[np.ndarray, int]:
+    def choose(self, ctx: StepContext) -> tuple[np.ndarray, np.ndarray]:
         z, u = ctx.streams.normals(), ctx.streams.uniforms()
         robots = np.flatnonzero(ctx.active) if not ctx.active.all() else np.arange(len(ctx.pos))
         first = not self.started
@@ -89,9 +89,9 @@ class LevyFlightPolicy:
         cand = ctx.grid.candidates[here]
         words, masks = ctx.grid.candidate_words
         options = ctx.sensing.edge_sensed_ok[here] & ~ctx.maps.test_words(2, robots, words[here], masks[here])
-        sensed = ctx.sensed[robots]
+        sensed = ctx.rows(ctx.sensed, robots)
         if sensed.any():
-            options &= ~((cand[:, :, None] == ctx.pos[None, None, :]) & sensed[:, None, :]).any(axis=-1)
+            options &= ~((cand[:, :, None] == ctx.peers(ctx.pos, robots)[:, None, :]) & sensed[:, None, :]).any(axis=-1)
         units = ctx.grid.edge_units[here]
         score = np.einsum("mkd,md->mk", units, self.desired_direction(ctx, robots))
         score = np.where(options, score, -np.inf)
@@ -105,4 +105,4 @@ class LevyFlightPolicy:
             step_vec = units[rows[slide], best[slide]]
             self.heading[robots[slide]] = np.arctan2(step_vec[:, 1], step_vec[:, 0])
         self.remaining[robots] = np.where(has, self.remaining[robots] - 1, 0)
-        return choice, 1
+        return choice, np.ones(len(ctx.pos) // ctx.n, dtype=np.intp)

@@ -21,11 +21,12 @@ class RobotStreams:
     """One independent random stream per robot (its own generator, keyed by seed and label).
 
     A robot's draws never depend on what other robots drew, so the outcome does not depend
-    on the order in which the simulator evaluates robots. Draws are buffered in chunks.
+    on the order in which the simulator evaluates robots, nor on which other runs share a
+    batch. Draws are buffered in chunks.
     """
 
-    def __init__(self, seed: int, n_robots: int, chunk: int = 256):
-        self.generators = [keyed_generator(seed, "search-robot", i) for i in range(n_robots)]
+    def __init__(self, seeds: list[int], n_robots: int, chunk: int = 256):
+        self.generators = [keyed_generator(seed, "search-robot", i) for seed in seeds for i in range(n_robots)]
         self.chunk = chunk
         self._uniform = np.empty((n_robots, 0))
         self._normal = np.empty((n_robots, 0, 3))
@@ -50,11 +51,14 @@ class RobotStreams:
 
 @dataclass
 class StepContext:
-    """What the robots can use at step ``k``.
+    """What the robots can use at step ``k``, for a batch of ``R`` independent runs of ``n``
+    robots each (robot ``g`` is robot ``g % n`` of run ``g // n``; runs never interact).
 
-    ``pos (n,)`` vertex ids; ``active (n,)`` alive robots; ``links (n, n)`` communication
-    neighbours (alive, within ``r_c``); ``sensed (n, n)`` robots within ``r_so`` (failed ones
-    included); ``aware = links | sensed``; ``maps`` the per-robot knowledge.
+    ``pos (R·n,)`` vertex ids; ``active (R·n,)`` alive robots of unfinished runs;
+    ``links (R, n, n)`` communication neighbours (alive, within ``r_c``); ``sensed (R, n, n)``
+    robots within ``r_so`` (failed ones included); ``aware = links | sensed``; ``maps`` the
+    per-robot knowledge. Use :meth:`rows` / :meth:`peers` to read what a robot knows about
+    the robots of its own run.
     """
 
     grid: Grid
@@ -67,6 +71,23 @@ class StepContext:
     links: np.ndarray
     sensed: np.ndarray
     aware: np.ndarray
+
+    @property
+    def n(self) -> int:
+        """Robots per run."""
+        return self.links.shape[-1]
+
+    def rows(self, relation: np.ndarray, robots: np.ndarray) -> np.ndarray:
+        """``(m, n)``: the rows of ``robots`` in a per-run relation ``(R, n, n)``."""
+        return relation[robots // self.n, robots % self.n]
+
+    def peers(self, values: np.ndarray, robots: np.ndarray) -> np.ndarray:
+        """``(m, n, ...)``: ``values (R·n, ...)`` of the robots in the run of each of ``robots``."""
+        return values.reshape(-1, self.n, *values.shape[1:])[robots // self.n]
+
+    def peer_ids(self, robots: np.ndarray, local: np.ndarray) -> np.ndarray:
+        """Global ids of robot ``local`` of the run of each of ``robots``."""
+        return (robots // self.n) * self.n + local
 
 
 def pick_uniform(cand: np.ndarray, pool: np.ndarray, u: np.ndarray, stay: np.ndarray) -> np.ndarray:

@@ -21,7 +21,7 @@ class RandomUnvisitedPolicy:
     communicates = True
     collision_free = False
 
-    def choose(self, ctx: StepContext) -> tuple[np.ndarray, int]:
+    def choose(self, ctx: StepContext) -> tuple[np.ndarray, np.ndarray]:
         robots = np.flatnonzero(ctx.active)
         here = ctx.pos[robots]
         cand = ctx.grid.candidates[here]
@@ -34,4 +34,4 @@ class RandomUnvisitedPolicy:
         choice = ctx.pos.copy()
         choice[robots] = pick_uniform(cand, pool, u[robots], here)
         ctx.maps.set(0, robots, choice[robots])
-        return choice, 1
+        return choice, np.ones(len(ctx.pos) // ctx.n, dtype=np.intp)

@@ -143,6 +143,14 @@ class FailureSpec(SpecModel):
     step: int = Field(ge=0)
 
 
+class RandomFailuresSpec(SpecModel):
+    """Random failure injection for experiments: ``count`` distinct robots, each failing at a
+    uniform random step in ``[0, within_steps)`` (drawn per seed from stream ``search-failures``)."""
+
+    count: int = Field(0, ge=0)
+    within_steps: int = Field(50, ge=1)
+
+
 class LevySpec(SpecModel):
     """Parameters of the grid-adapted LFP baseline (:mod:`.levy_flight`)."""
 
@@ -166,6 +174,7 @@ class Spec(SpecModel):
     targets: list[Point] = []
     robots: RobotsSpec
     failures: list[FailureSpec] = []
+    random_failures: RandomFailuresSpec = RandomFailuresSpec()
     max_steps: int = Field(20000, ge=1)
     require_guarantee: bool = False
     levy: LevySpec = LevySpec()
@@ -217,6 +226,8 @@ class Spec(SpecModel):
         for k, f in enumerate(self.failures):
             if f.robot >= n:
                 raise ScenarioError(f"failures.{k}.robot", f"a robot index below {n}", f.robot)
+        if self.random_failures.count >= n and self.random_failures.count:
+            raise ScenarioError("random_failures.count", f"fewer failing robots than robots ({n})", self.random_failures.count)
 
     def _check_guarantee(self) -> None:
         report = self.assumption_report()
@@ -249,14 +260,25 @@ def start_vertices(spec: Spec, grid: Grid, seed: int) -> np.ndarray:
     return np.sort(keyed_generator(seed, "search-starts").choice(border, size=spec.robots.count, replace=False))
 
 
+def failure_steps(spec: Spec, seed: int) -> np.ndarray:
+    """Step at which each robot fails (``-1``: never): the listed failures, then the random ones."""
+    failures = np.full(spec.robots.n, -1, dtype=np.intp)
+    for f in spec.failures:
+        failures[f.robot] = f.step
+    rf = spec.random_failures
+    if rf.count:
+        rng = keyed_generator(seed, "search-failures")
+        robots = rng.choice(spec.robots.n, size=rf.count, replace=False)
+        failures[robots] = rng.integers(0, rf.within_steps, size=rf.count)
+    return failures
+
+
 def build_problem(spec: Spec, seed: int) -> SearchProblem:
     """Resolve a spec into a :class:`SearchProblem` for ``seed`` (start draw included)."""
     grid = spec.built_grid()
     r = spec.ranges
     sensing = _sensing_for(grid, tuple(map(tuple, spec.targets)), r.r_so, r.r_st)
-    failures = np.full(spec.robots.n, -1, dtype=np.intp)
-    for f in spec.failures:
-        failures[f.robot] = f.step
+    failures = failure_steps(spec, seed)
     lv = spec.levy
     return SearchProblem(grid, sensing, np.asarray(spec.targets, dtype=float).reshape(-1, 2), start_vertices(spec, grid, seed),
                          spec.situation, r.r_so, r.r_st, r.r_c, spec.timing, failures, spec.max_steps,

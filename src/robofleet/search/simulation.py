@@ -18,6 +18,10 @@ One iteration ``k`` (all robots simultaneously, Section 4):
    long as the slowest robot plus the choice rounds (:mod:`.timing`).
 
 The loop also keeps observer-only records (true visits, collisions) that no robot reads.
+Several independent runs (same area, same number of robots, their own seeds and starts)
+can advance in lockstep as one batch: robot ``g`` is robot ``g % n`` of run ``g // n``,
+robots of different runs never sense, hear or collide with each other, and every robot
+draws from its own stream — so a run's result does not depend on its batch.
 """
 
 from __future__ import annotations
@@ -97,8 +101,8 @@ class SearchOutcome:
     times: np.ndarray | None = None
 
 
-def make_policy(problem: SearchProblem, algorithm: Algorithm):
-    """The choice policy of ``algorithm``."""
+def make_policy(problem: SearchProblem, algorithm: Algorithm, n_total: int):
+    """The choice policy of ``algorithm`` for ``n_total`` robots (all runs of a batch)."""
     if algorithm is Algorithm.PROPOSED:
         return SequentialPolicy(repulsion=True)
     if algorithm is Algorithm.RULE1:
@@ -106,134 +110,158 @@ def make_policy(problem: SearchProblem, algorithm: Algorithm):
     if algorithm is Algorithm.RU:
         return RandomUnvisitedPolicy()
     lv = problem.levy
-    return LevyFlightPolicy(problem.n_robots, beta=lv.beta, turn_sigma=lv.turn_sigma, repulsion=lv.repulsion,
+    return LevyFlightPolicy(n_total, beta=lv.beta, turn_sigma=lv.turn_sigma, repulsion=lv.repulsion,
                             max_flight=lv.max_flight, r_so=problem.r_so)
 
 
 def collision_pairs(pos: np.ndarray, choice: np.ndarray) -> np.ndarray:
-    """``(K, 2)`` robot pairs that collide in a move: same destination, or swapping along one edge."""
-    same = choice[:, None] == choice[None, :]
-    swap = (choice[:, None] == pos[None, :]) & (choice[None, :] == pos[:, None]) & (choice != pos)[:, None]
-    hit = np.triu(same | swap, k=1)
+    """``(K, 3)`` rows ``(run, i, j)`` of robots that collide in a move: same destination, or
+    swapping along one edge. ``pos``, ``choice``: ``(R, n)``."""
+    same = choice[:, :, None] == choice[:, None, :]
+    swap = (choice[:, :, None] == pos[:, None, :]) & (choice[:, None, :] == pos[:, :, None]) & (choice != pos)[:, :, None]
+    hit = np.triu(np.ones(same.shape[1:], dtype=bool), k=1) & (same | swap)
     return np.argwhere(hit)
 
 
-class SearchRun:
-    """State of one run: true positions (observer) and per-robot knowledge (robots)."""
+class SearchBatch:
+    """State of ``R`` lockstep runs: true positions (observer) and per-robot knowledge (robots)."""
 
-    def __init__(self, problem: SearchProblem, algorithm: Algorithm, seed: int, record: bool):
-        self.p = problem
+    def __init__(self, problems: list[SearchProblem], algorithm: Algorithm, seeds: list[int], record: bool):
+        p = problems[0]
+        self.p = p
         self.algorithm = Algorithm(algorithm)
-        n, grid = problem.n_robots, problem.grid
-        self.maps = RobotMaps(n, grid.n_vertices, len(problem.targets))
-        self.streams = RobotStreams(seed, n)
-        self.policy = make_policy(problem, self.algorithm)
-        self.pos = problem.starts.astype(np.intp).copy()
-        self.heading = np.zeros(n)
-        self.alive = np.ones(n, dtype=bool)
-        self.visited = np.zeros(grid.n_vertices, dtype=bool)
-        self.time = 0.0
-        self.counts = {"collisions": 0, "obstacle_collisions": 0, "rounds": 0}
-        self.n = n
-        timing = problem.timing
-        self.rc2 = (problem.r_c + EPS) ** 2
-        self.rso2 = (problem.r_so + EPS) ** 2
+        self.R, self.n = len(problems), p.n_robots
+        grid = p.grid
+        N = self.R * self.n
+        self.maps = RobotMaps(N, grid.n_vertices, len(p.targets))
+        self.streams = RobotStreams(list(seeds), self.n)
+        self.policy = make_policy(p, self.algorithm, N)
+        self.pos = np.concatenate([q.starts for q in problems]).astype(np.intp)
+        self.failures = np.concatenate([q.failures for q in problems])
+        self.starts = [q.starts for q in problems]
+        self.heading = np.zeros(N)
+        self.alive = np.ones(N, dtype=bool)
+        self.running = np.ones(self.R, dtype=bool)
+        self.visited = np.zeros((self.R, grid.n_vertices), dtype=bool)
+        self.time = np.zeros(self.R)
+        self.steps = np.full(self.R, p.max_steps)
+        self.stopped_by = np.full(self.R, -1)
+        self.collisions = np.zeros(self.R, dtype=np.intp)
+        self.obstacle_collisions = np.zeros(self.R, dtype=np.intp)
+        self.rounds = np.zeros(self.R, dtype=np.intp)
+        timing = p.timing
+        self.rc2 = (p.r_c + EPS) ** 2
+        self.rso2 = (p.r_so + EPS) ** 2
         self.translate_seconds = float(timing.translation_time(grid.a))
         self.fixed_rotation = timing.rotation_mode == "fixed"
         self.step_seconds = timing.rotation_seconds + self.translate_seconds
         self.penalty = timing.collision_penalty_moves * timing.move_time(grid.a)
-        self.step2_rows = problem.sensing.step2_rows(problem.situation)
-        self.occupied = np.zeros(grid.n_vertices, dtype=bool)
-        self.record = record
+        self.step2_rows = p.sensing.step2_rows(p.situation)
+        self.record = record and self.R == 1
         self.events: list[dict] = []
-        self.trail = [self.pos.copy()] if record else None
-        self.clock = [0.0] if record else None
+        self.trail = [self.pos.copy()] if self.record else None
+        self.clock = [0.0] if self.record else None
 
     def event(self, step: int, kind: str, **info) -> None:
         if self.record:
-            self.events.append({"step": step, "kind": kind, "time": self.time, **info})
+            self.events.append({"step": step, "kind": kind, "time": float(self.time[0]), **info})
 
     # -- steps 1-3 ----------------------------------------------------------------------
     def sense(self, step: int, live: np.ndarray) -> None:
         """Steps 1–2: target and obstacle sensing at each live robot's own vertex."""
         p, maps = self.p, self.maps
         here = self.pos[live]
-        self.visited[here] = True
+        self.visited[live // self.n, here] = True
         seen = p.sensing.target_visible[here]
         if seen.any():
             if self.record:
                 new = seen.any(axis=0) & ~maps.targets.any(axis=0)
                 for t in np.flatnonzero(new):
                     self.event(step, "target_found", robot=int(live[np.argmax(seen[:, t])]), target=int(t))
-            maps.broadcast_targets(seen.any(axis=0), live)
+            self.broadcast_found(live, seen)
         maps.layers[live] |= self.step2_rows[here]
 
-    def detect_failures(self, step: int, dist_ok: np.ndarray) -> None:
-        """Step 3 failure information: live robots near a silent robot block its vertex."""
-        failed = ~self.alive
-        if not failed.any():
+    def broadcast_found(self, live: np.ndarray, seen: np.ndarray) -> None:
+        """Step 1: a finder broadcasts the target to every live robot of its run."""
+        found = np.zeros((self.R, seen.shape[1]), dtype=bool)
+        np.logical_or.at(found, live // self.n, seen)
+        self.maps.broadcast_targets(found[live // self.n], live)
+
+    def detect_failures(self, step: int, near: np.ndarray) -> None:
+        """Step 3 failure information: live robots near a silent robot block its vertex.
+
+        ``near (R, n, n)``: robots within ``r_c`` or ``r_so`` of each other.
+        """
+        alive = self.alive.reshape(self.R, self.n)
+        runs, watchers, silent = np.nonzero(near & alive[:, :, None] & ~alive[:, None, :])
+        if not len(runs):
             return
-        watchers, silent = np.nonzero(dist_ok & self.alive[:, None] & failed[None, :])
-        if len(watchers):
+        watchers, silent = runs * self.n + watchers, runs * self.n + silent
+        if self.record:
             known = self.maps.test(2, watchers, self.pos[silent][:, None])[:, 0]
             for w, s in zip(watchers[~known], silent[~known]):
                 self.event(step, "failure_detected", robot=int(w), failed=int(s))
-            self.maps.set(2, watchers, self.pos[silent])
-            if self.p.situation == 2:
-                self.maps.set(0, watchers, self.pos[silent])
+        self.maps.set(2, watchers, self.pos[silent])
+        if self.p.situation == 2:
+            self.maps.set(0, watchers, self.pos[silent])
 
-    def stop_reached(self) -> np.ndarray:
-        """Rules (3)/(4) per robot (only live robots can stop)."""
+    def stop_reached(self, active: np.ndarray) -> np.ndarray:
+        """Rules (3)/(4) per robot (only active robots can stop)."""
         if self.p.situation == 1:
             done = self.maps.targets.all(axis=1)
         else:
             done = self.maps.frontier_empty()
-        return done & self.alive
+        return done & active
 
     # -- step 6 -------------------------------------------------------------------------
-    def move(self, step: int, choice: np.ndarray, rounds: int) -> None:
-        """Step 6: bump into unsensed obstacles, count collisions, advance the clock."""
+    def move(self, step: int, choice: np.ndarray, rounds: np.ndarray) -> None:
+        """Step 6: bump into unsensed obstacles, count collisions, advance the clocks."""
         p, grid = self.p, self.p.grid
         if not p.sensing.exact:
             choice = self.bump(step, choice)
         moving = choice != self.pos
-        pairs = collision_pairs(self.pos, choice) if self.n > 1 and self.may_collide(choice) else ()
-        for i, j in pairs:
-            self.event(step, "collision", robots=[int(i), int(j)], vertex=int(choice[i]))
-        self.counts["collisions"] += len(pairs)
-        dt = p.timing.decision_seconds * rounds + self.penalty * len(pairs)
+        per_run = np.zeros(self.R, dtype=np.intp)
+        if self.n > 1 and self.may_collide(choice):
+            pairs = collision_pairs(self.pos.reshape(self.R, self.n), choice.reshape(self.R, self.n))
+            pairs = pairs[self.running[pairs[:, 0]]]
+            per_run = np.bincount(pairs[:, 0], minlength=self.R)
+            for r, i, j in pairs:
+                self.event(step, "collision", robots=[int(i), int(j)], vertex=int(choice[r * self.n + i]))
+        self.collisions += per_run
+        dt = p.timing.decision_seconds * rounds + self.penalty * per_run
+        moved_runs = moving.reshape(self.R, self.n).any(axis=1)
         if moving.any():
             if self.fixed_rotation:
-                dt += self.step_seconds
+                dt = dt + self.step_seconds * moved_runs
                 vec = grid.points[choice[moving]] - grid.points[self.pos[moving]]
                 self.heading[moving] = np.arctan2(vec[:, 1], vec[:, 0])
             else:
-                dt += self.turn_and_translate(moving, choice)
-        self.time += dt
-        self.counts["rounds"] += rounds
+                dt = dt + self.turn_and_translate(moving, choice)
+        self.time += np.where(self.running, dt, 0.0)
+        self.rounds += np.where(self.running, rounds, 0)
         self.pos = choice
         if self.record:
             self.trail.append(self.pos.copy())
-            self.clock.append(self.time)
+            self.clock.append(float(self.time[0]))
 
     def may_collide(self, choice: np.ndarray) -> bool:
-        """Cheap pre-check: a repeated destination, or a robot moving onto an occupied vertex."""
-        ordered = np.sort(choice)
+        """Cheap pre-check: a repeated destination in a run, or a robot moving onto an occupied vertex."""
+        key = (np.arange(len(choice)) // self.n) * self.p.grid.n_vertices
+        dest, here = key + choice, key + self.pos
+        ordered = np.sort(dest)
         if (ordered[1:] == ordered[:-1]).any():
             return True
-        self.occupied[self.pos] = True
-        into = self.occupied[choice[choice != self.pos]].any()
-        self.occupied[self.pos] = False
-        return bool(into)
+        return bool(np.isin(dest[choice != self.pos], here).any())
 
-    def turn_and_translate(self, moving: np.ndarray, choice: np.ndarray) -> float:
-        """Duration of the slowest robot: trapezoidal rotation to the edge, then translation."""
+    def turn_and_translate(self, moving: np.ndarray, choice: np.ndarray) -> np.ndarray:
+        """Per run: duration of its slowest robot (trapezoidal rotation to the edge, then translation)."""
         grid, timing = self.p.grid, self.p.timing
         vec = grid.points[choice[moving]] - grid.points[self.pos[moving]]
         new_heading = np.arctan2(vec[:, 1], vec[:, 0])
-        turn = timing.rotation_time(heading_change(self.heading[moving], new_heading))
+        turn = np.zeros(len(choice))
+        turn[moving] = timing.rotation_time(heading_change(self.heading[moving], new_heading)) + self.translate_seconds
         self.heading[moving] = new_heading
-        return float(np.max(turn)) + self.translate_seconds
+        return turn.reshape(self.R, self.n).max(axis=1)
 
     def bump(self, step: int, choice: np.ndarray) -> np.ndarray:
         """Robots that take an edge blocked by an unsensed obstacle touch it and stay (it learns the vertex blocked)."""
@@ -241,80 +269,98 @@ class SearchRun:
         moving = choice != self.pos
         truly_free = (grid.edge_ok[self.pos] & (grid.neighbours[self.pos] == choice[:, None])).any(axis=1)
         bumped = moving & ~truly_free
-        for r in np.flatnonzero(bumped):
-            self.counts["obstacle_collisions"] += 1
-            self.event(step, "obstacle_collision", robot=int(r), vertex=int(choice[r]))
         if bumped.any():
+            np.add.at(self.obstacle_collisions, np.flatnonzero(bumped) // self.n, 1)
+            for r in np.flatnonzero(bumped):
+                self.event(step, "obstacle_collision", robot=int(r), vertex=int(choice[r]))
             self.maps.set(2, np.flatnonzero(bumped), choice[bumped])
         return np.where(bumped, self.pos, choice)
 
     # -- the loop -----------------------------------------------------------------------
-    def run(self) -> SearchOutcome:
-        p = self.p
-        steps, stopped_by = 0, -1
-        everyone = np.arange(self.n)
-        no_links = np.zeros((self.n, self.n), dtype=bool)
-        has_failures = bool((p.failures >= 0).any())
+    def run(self) -> list[SearchOutcome]:
+        p, R, n = self.p, self.R, self.n
+        run_of = np.arange(R * n) // n
+        no_links = np.zeros((R, n, n), dtype=bool)
+        has_failures = bool((self.failures >= 0).any())
         for step in range(p.max_steps + 1):
-            steps = step
             if has_failures:
                 self.fail_robots(step)
-            live = everyone if self.alive.all() else np.flatnonzero(self.alive)
+            active = self.alive & self.running[run_of]
+            live = np.flatnonzero(active)
             links = sensed = no_links
-            if self.n > 1:
-                pts = p.grid.points[self.pos]
-                diff = pts[:, None, :] - pts[None, :, :]
-                d2 = np.einsum("ijd,ijd->ij", diff, diff)
-                np.fill_diagonal(d2, np.inf)
+            if n > 1:
+                pts = p.grid.points[self.pos].reshape(R, n, 2)
+                diff = pts[:, :, None, :] - pts[:, None, :, :]
+                d2 = np.einsum("rijd,rijd->rij", diff, diff)
+                d2[:, np.arange(n), np.arange(n)] = np.inf
+                alive = self.alive.reshape(R, n)
                 in_range = d2 <= self.rc2
-                sensed = (d2 <= self.rso2) & self.alive[:, None]
-                links = in_range & self.alive[:, None] & self.alive[None, :]
+                sensed = (d2 <= self.rso2) & alive[:, :, None]
+                links = in_range & alive[:, :, None] & alive[:, None, :]
                 if has_failures:
                     self.detect_failures(step, in_range | sensed)
             self.sense(step, live)
             if self.policy.communicates and links.any():
                 self.maps.exchange(links)
-            done = self.stop_reached()
-            if done.any():
-                stopped_by = int(np.argmax(done))
-                self.event(step, "stop", robot=stopped_by)
+            done = self.stop_reached(active).reshape(R, n)
+            finished = done.any(axis=1) & self.running
+            if finished.any():
+                self.stopped_by[finished] = np.argmax(done[finished], axis=1)
+                self.steps[finished] = step
+                for r in np.flatnonzero(finished):
+                    self.event(step, "stop", robot=int(self.stopped_by[r]))
+                self.running &= ~finished
+                active = self.alive & self.running[run_of]
+            if not self.running.any() or step == p.max_steps:
                 break
-            if step == p.max_steps:
-                break
-            ctx = StepContext(p.grid, p.sensing, self.maps, self.streams, self.pos, self.heading, self.alive,
+            ctx = StepContext(p.grid, p.sensing, self.maps, self.streams, self.pos, self.heading, active,
                               links, sensed, links | sensed)
             choice, rounds = self.policy.choose(ctx)
             self.move(step, choice, rounds)
-        return self.outcome(steps, stopped_by)
+        return [self.outcome(r) for r in range(R)]
 
     def fail_robots(self, step: int) -> None:
         """Failure injection: a robot whose failure step is reached stops for good."""
-        failing = (self.p.failures == step) & self.alive
+        failing = (self.failures == step) & self.alive
         for r in np.flatnonzero(failing):
             self.event(step, "failure", robot=int(r), vertex=int(self.pos[r]))
         self.alive &= ~failing
 
-    def outcome(self, steps: int, stopped_by: int) -> SearchOutcome:
+    def outcome(self, r: int) -> SearchOutcome:
         p = self.p
-        reachable = p.grid.reachable_from(p.starts) & p.grid.accessible
-        found = self.maps.targets.any(axis=0)
+        reachable = p.grid.reachable_from(self.starts[r]) & p.grid.accessible
+        mine = slice(r * self.n, (r + 1) * self.n)
+        found = self.maps.targets[mine].any(axis=0)
+        steps = int(self.steps[r])
         results = {
-            "search_time": float(self.time),
-            "completed": bool(stopped_by >= 0),
-            "n_steps": int(steps),
+            "search_time": float(self.time[r]),
+            "completed": bool(self.stopped_by[r] >= 0),
+            "n_steps": steps,
             "found_targets": int(found.sum()),
             "n_targets": int(len(p.targets)),
-            "visited_share": float(self.visited[reachable].mean()) if reachable.any() else 1.0,
-            "collisions": int(self.counts["collisions"]),
-            "obstacle_collisions": int(self.counts["obstacle_collisions"]),
-            "mean_rounds": float(self.counts["rounds"] / max(steps, 1)),
-            "failed_robots": int((~self.alive).sum()),
+            "visited_share": float(self.visited[r][reachable].mean()) if reachable.any() else 1.0,
+            "collisions": int(self.collisions[r]),
+            "obstacle_collisions": int(self.obstacle_collisions[r]),
+            "mean_rounds": float(self.rounds[r] / max(steps, 1)),
+            "failed_robots": int((~self.alive[mine]).sum()),
         }
-        out = SearchOutcome(results, self.visited.copy(), self.events)
+        out = SearchOutcome(results, self.visited[r].copy(), self.events if self.record else [])
         if self.record:
             out.vertices = np.asarray(self.trail)
             out.times = np.asarray(self.clock)
         return out
+
+
+def check_batch(problems: list[SearchProblem], algorithm: Algorithm) -> None:
+    """Raise ``ConfigError`` for LFP in situation 2 or for runs that do not share one area."""
+    from ..core.errors import ConfigError
+
+    if algorithm is Algorithm.LFP and problems[0].situation == 2:
+        raise ConfigError("algorithm: expected proposed, rule1 or ru in situation 2 (LFP keeps no map for stop rule (4)), received 'lfp'")
+    first = problems[0]
+    for q in problems[1:]:
+        if q.grid is not first.grid or q.sensing is not first.sensing or q.n_robots != first.n_robots or q.situation != first.situation:
+            raise ConfigError("problems: expected runs on one grid with the same robots and targets, received a mixed batch")
 
 
 def run_search(problem: SearchProblem, algorithm: Algorithm | str, seed: int, record: bool = False) -> SearchOutcome:
@@ -326,8 +372,21 @@ def run_search(problem: SearchProblem, algorithm: Algorithm | str, seed: int, re
         For LFP in situation 2 (LFP keeps no map, so stop rule (4) has no meaning).
     """
     algorithm = Algorithm(algorithm)
-    if algorithm is Algorithm.LFP and problem.situation == 2:
+    check_batch([problem], algorithm)
+    return SearchBatch([problem], algorithm, [int(seed)], record).run()[0]
+
+
+def run_search_batch(problems: list[SearchProblem], algorithm: Algorithm | str, seeds: list[int]) -> list[SearchOutcome]:
+    """Simulate independent runs in lockstep (one numpy pass per step for all of them).
+
+    ``problems[k]`` (same grid, sensing tables, robot count; its own starts and failures)
+    runs with seed ``seeds[k]``; each outcome equals ``run_search(problems[k], algorithm,
+    seeds[k])`` exactly. Nothing is recorded.
+    """
+    algorithm = Algorithm(algorithm)
+    if len(problems) != len(seeds) or not problems:
         from ..core.errors import ConfigError
 
-        raise ConfigError("algorithm: expected proposed, rule1 or ru in situation 2 (LFP keeps no map for stop rule (4)), received 'lfp'")
-    return SearchRun(problem, algorithm, int(seed), record).run()
+        raise ConfigError(f"seeds: expected one seed per problem ({len(problems)}), received {len(seeds)}")
+    check_batch(problems, algorithm)
+    return SearchBatch(problems, algorithm, [int(s) for s in seeds], False).run()
