@@ -30,7 +30,7 @@ CASES = [
     ("robots.radius", -1.0, "robots.radius", "greater than 0"),
     ("delta", 1.0, "delta", "less than 1"),
     ("delta", 0.0, "delta", "greater than 0"),
-    ("method", "magic", "method", "'buavc', 'bvc' or 'bvc_inflated'"),
+    ("method", "magic", "method", "'buavc', 'bvc'"),
     ("robots.cov", [[0.01, 0.002], [0.0, 0.01]], "robots.cov", "symmetric"),
     ("robots.cov", [[0.01, 0.0], [0.0, -0.01]], "robots.cov", "positive semi-definite"),
     ("robots.cov", [[0.01, 0.0, 0.0]], "robots.cov", "2×2"),
