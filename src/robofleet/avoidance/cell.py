@@ -17,6 +17,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from enum import IntEnum
 
+import numba
 import numpy as np
 from scipy.spatial import cKDTree
 
@@ -141,28 +142,37 @@ def _wall_rows(p, covs, radius, quantile, geometry: CellGeometry, local_box):
 
 
 def _pad(n: int, d: int, parts) -> Cells:
+    """Group constraint rows by owner into padded per-robot arrays (O(K), no sort)."""
     parts = [pt for pt in parts if pt is not None]
-    owner = np.concatenate([pt[0] for pt in parts])
+    owner = np.concatenate([pt[0] for pt in parts]).astype(np.intp)
     normals = np.concatenate([pt[1] for pt in parts])
     offsets = np.concatenate([pt[2] for pt in parts])
     kind = np.concatenate([np.full(len(pt[0]), int(pt[3]), np.int8) for pt in parts])
-    source = np.concatenate([pt[4] for pt in parts])
-    order = np.argsort(owner, kind="stable")
-    owner = owner[order]
-    counts = np.bincount(owner, minlength=n)
-    rank = np.arange(len(owner)) - np.repeat(np.cumsum(counts) - counts, counts)
-    m = max(int(counts.max(initial=0)), 1)
+    source = np.concatenate([pt[4] for pt in parts]).astype(np.intp)
+    m = max(int(np.bincount(owner, minlength=n).max(initial=0)), 1)
     A = np.zeros((n, m, d))
     b = np.ones((n, m))
-    valid = np.zeros((n, m), bool)
+    valid = np.zeros((n, m), np.bool_)
     kinds = np.full((n, m), -1, np.int8)
     src = np.full((n, m), -1, np.intp)
-    A[owner, rank] = normals[order]
-    b[owner, rank] = offsets[order]
-    valid[owner, rank] = True
-    kinds[owner, rank] = kind[order]
-    src[owner, rank] = source[order]
+    _scatter_rows(owner, np.ascontiguousarray(normals), offsets, kind, source, A, b, valid, kinds, src)
     return Cells(A, b, valid, kinds, src)
+
+
+@numba.njit(cache=True)
+def _scatter_rows(owner, normals, offsets, kind, source, A, b, valid, kinds, src):
+    """Append row k to robot ``owner[k]``'s next free slot, keeping the input order."""
+    fill = np.zeros(A.shape[0], np.intp)
+    for k in range(len(owner)):
+        i = owner[k]
+        r = fill[i]
+        fill[i] = r + 1
+        for c in range(A.shape[2]):
+            A[i, r, c] = normals[k, c]
+        b[i, r] = offsets[k]
+        valid[i, r] = True
+        kinds[i, r] = kind[k]
+        src[i, r] = source[k]
 
 
 def cell_from_view(
