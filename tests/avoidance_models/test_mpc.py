@@ -33,7 +33,7 @@ CASES = [
 @pytest.mark.parametrize("name,params,dim,dt,horizon,step,x0", CASES, ids=[c[0] for c in CASES])
 def test_mpc_keeps_every_stage_in_the_cell(name, params, dim, dt, horizon, step, x0):
     A, b = corner_cell(dim)
-    mpc = BuavcMPC(name, params, dim=dim, dt=dt, config=MPCConfig(horizon=horizon), n_robots=1)
+    mpc = BuavcMPC(name, params, dim=dim, dt=dt, config=MPCConfig(horizon=horizon, deadlock_progress=0.01), n_robots=1)
     goal = np.full((1, dim), 3.0)
     if dim == 3:
         goal[0, 2] = 2.0

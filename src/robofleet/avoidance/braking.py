@@ -18,7 +18,9 @@ robot applies the first one for which the three points
 
     p + v Δt/2,   p⁺ = p + v Δt + ½ u Δt²,   stop(p⁺, v⁺) = p⁺ + D(‖v⁺‖) v̂⁺
 
-lie in the cell, and ``a_brake`` (λ = 0) when none does.
+lie in the cell, and ``a_brake`` (λ = 0) when none does. A robot whose estimate is
+*outside* its cell (noise, or neighbours closer than their buffers) cannot satisfy the
+rule; it applies ``u_des`` toward ``g*``, the nearest point of its cell, to get back in.
 
 *Why it is safe (fixed cell).* Within a step the path is the quadratic Bézier curve
 with control points ``p``, ``p + v Δt/2``, ``p⁺``, hence inside their convex hull; after
@@ -101,7 +103,9 @@ def braking_rule(position, velocity, target, A, b, valid, params: DoubleIntegrat
     first = np.argmax(ok, axis=1)
     any_ok = ok[np.arange(len(p)), first]
     control = np.where(any_ok[:, None], cand[np.arange(len(p)), first], u_brake)
-    return control, ~any_ok
+    outside = ~_inside(p[:, None, :], A, b, valid)[:, 0]
+    control = np.where(outside[:, None], u_des, control)
+    return control, ~any_ok & ~outside
 
 
 def _inside(points, A, b, valid) -> np.ndarray:

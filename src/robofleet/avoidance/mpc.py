@@ -19,8 +19,8 @@ When the solver fails or its plan leaves the cell, the robot applies its model's
 fallback (zero input; for the double integrator the brake of :mod:`.braking`; for the
 quadrotor the level-attitude, zero-climb input).
 
-Deadlock (appendix C): when a robot that has not arrived moves less than
-``Δp_min`` in total over the last ``n_dead`` steps, its goal is rotated clockwise by
+Deadlock (appendix C, :class:`GoalRotation`): when a robot that has not arrived moves
+less than ``Δp_min`` over the last ``n_dead`` steps, its goal is rotated clockwise by
 90° about the robot, ``g_tmp = R_z(−90°)(g − p̂) + p̂``, for ``recover_steps`` steps.
 
 The input weight ``w_u`` (default 1e-3) is our addition: the terminal cost alone leaves
@@ -35,7 +35,6 @@ import sys
 from dataclasses import dataclass
 from typing import Callable, Literal
 
-import casadi as ca
 import numpy as np
 from pydantic import Field
 
@@ -67,7 +66,7 @@ class MPCConfig(SpecModel):
     max_constraints: int = Field(12, gt=0, description="cell rows the problem is built for")
     input_weight: float = Field(1e-3, ge=0, description="w_u")
     deadlock_steps: int = Field(20, gt=0, description="n_dead")
-    deadlock_progress: float = Field(0.05, ge=0, description="Δp_min [m] over n_dead steps")
+    deadlock_progress: float = Field(0.2, ge=0, description="Δp_min [m]: least net displacement over n_dead steps")
     recover_steps: int = Field(10, gt=0, description="steps with the rotated goal")
     max_iter: int = Field(30, gt=0, description="IPOPT iteration cap (nonlinear models)")
 
@@ -155,17 +154,19 @@ class BuavcMPC:
         N, m = config.horizon, self.model
         self._warm = np.full((n_robots, self._nz), np.nan)
         self._lam_g = np.zeros((n_robots, self._ng))
-        self._since_rotation = np.zeros(n_robots, np.int64)
-        self._rotation_left = np.zeros(n_robots, np.int64)
-        self._moves = np.zeros((config.deadlock_steps, n_robots))
-        self._last_pos = None
-        self.step_count = 0
-        self.deadlocks = np.zeros(n_robots, np.int64)
+        self.rotation = GoalRotation(n_robots, config.deadlock_steps, config.deadlock_progress, config.recover_steps)
         self.infeasible = np.zeros(n_robots, np.int64)
         del N, m
 
+    @property
+    def deadlocks(self) -> np.ndarray:
+        """Deadlock detections per robot so far."""
+        return self.rotation.deadlocks
+
     # ------------------------------------------------------------------ problem build
     def _build(self) -> None:
+        import casadi as ca  # imported here: loading a scenario must not pay for casadi
+
         m, N, M = self.model, self.config.horizon, self.config.max_constraints
         X = ca.SX.sym("X", m.nx, N + 1)
         U = ca.SX.sym("U", m.nu, N)
@@ -282,21 +283,45 @@ class BuavcMPC:
         return controls, {"plans": plans, "fallback": fallback & todo, "goals": working}
 
     def _working_goals(self, positions: np.ndarray, goals: np.ndarray, arrived) -> np.ndarray:
-        """Appendix C goal rotation, vectorized over robots."""
-        cfg = self.config
-        if self._last_pos is not None:
-            self._moves[self.step_count % cfg.deadlock_steps] = np.linalg.norm(positions - self._last_pos, axis=1)
-        self._last_pos = positions.copy()
+        return self.rotation.working_goals(positions, goals, arrived)
+
+
+class GoalRotation:
+    """Appendix C deadlock detection and goal rotation, vectorized over robots.
+
+    A robot that has not arrived is deadlocked when its (estimated) position moved less
+    than ``progress`` over the last ``window`` steps. Appendix C sums the step lengths
+    ``Σ‖Δp‖``; we use the net displacement ``‖p̂_k − p̂_{k−window}‖`` instead, because
+    with noisy estimates the summed jitter alone exceeds any useful threshold. For the
+    next ``recover_steps`` steps the robot steers to ``g_tmp = R_z(−90°)(g − p̂) + p̂``
+    (Eq. (51)), then back to ``g``; it is not re-flagged within ``window`` steps.
+    """
+
+    def __init__(self, n: int, window: int, progress: float, recover_steps: int):
+        self.window, self.progress, self.recover_steps = window, progress, recover_steps
+        self._since = np.zeros(n, np.int64)
+        self._left = np.zeros(n, np.int64)
+        self._history = None
+        self.step_count = 0
+        self.deadlocks = np.zeros(n, np.int64)
+
+    def working_goals(self, positions: np.ndarray, goals: np.ndarray, arrived: np.ndarray | None = None) -> np.ndarray:
+        """The goals to steer to this step (rotated for recovering robots); updates the detector."""
+        if self._history is None:
+            self._history = np.repeat(positions[None], self.window, 0)
+        slot = self.step_count % self.window
+        moved = np.linalg.norm(positions - self._history[slot], axis=1)
+        self._history[slot] = positions
         self.step_count += 1
         done = np.zeros(len(positions), bool) if arrived is None else arrived
-        self._since_rotation += 1
-        stuck = (self.step_count > cfg.deadlock_steps) & (self._moves.sum(axis=0) <= cfg.deadlock_progress) & ~done
-        stuck &= (self._rotation_left == 0) & (self._since_rotation > cfg.deadlock_steps)
-        self._rotation_left[stuck] = cfg.recover_steps
-        self._since_rotation[stuck] = 0
+        self._since += 1
+        stuck = (self.step_count > self.window) & (moved <= self.progress) & ~done
+        stuck &= (self._left == 0) & (self._since > self.window)
+        self._left[stuck] = self.recover_steps
+        self._since[stuck] = 0
         self.deadlocks += stuck
-        rotating = self._rotation_left > 0
-        self._rotation_left[rotating] -= 1
+        rotating = self._left > 0
+        self._left[rotating] -= 1
         return np.where(rotating[:, None], rotate_goal_clockwise(positions, goals), goals)
 
 

@@ -30,6 +30,7 @@ from ..core import geometry
 from ..core.errors import ScenarioError
 from ..core.workspace import Workspace
 from ..scenarios.base import SpecModel
+from .models_spec import ModelSpec, OrcaParams, Space3DSpec, TeamSpec, check_models, reject_3d_obstacles_in_2d
 
 Point = tuple[float, float]
 
@@ -155,11 +156,13 @@ class DeadlockSpec(SpecModel):
 
 
 class Spec(SpecModel):
-    """A B-UAVC scenario (single-integrator robots, 2D)."""
+    """A B-UAVC scenario: single-integrator robots in 2D by default; ``model``, ``teams``,
+    ``space3d`` and ``method: orca`` select the other models of paper 003
+    (:mod:`robofleet.avoidance.models_spec`)."""
 
     family: Literal["avoidance"] = "avoidance"
     name: str = ""
-    method: Literal["buavc", "bvc", "bvc_inflated"] = "buavc"
+    method: Literal["buavc", "bvc", "bvc_inflated", "orca"] = "buavc"
     delta: float = Field(0.1, gt=0, lt=1)
     inflation_sigmas: float = Field(3.0, ge=0)
     local_box: float = Field(2.0, gt=0)
@@ -170,11 +173,27 @@ class Spec(SpecModel):
     robots: RobotsSpec = Field(default_factory=RobotsSpec)
     deadlock: DeadlockSpec = Field(default_factory=DeadlockSpec)
     record_cells: Optional[bool] = None
+    model: ModelSpec = Field(default_factory=ModelSpec)
+    orca: OrcaParams = Field(default_factory=OrcaParams)
+    space3d: Optional[Space3DSpec] = None
+    teams: Optional[list[TeamSpec]] = None
+
+    @model_validator(mode="before")
+    @classmethod
+    def _no_3d_obstacles_in_2d(cls, data):
+        return reject_3d_obstacles_in_2d(data)
 
     @model_validator(mode="after")
     def _layout_fits(self):
-        check_layout(self)
+        if not self.teams:
+            check_layout(self)
+        check_models(self)
         return self
+
+    @property
+    def uses_models(self) -> bool:
+        """Whether the run needs the general-model loop (:mod:`.models_simulation`)."""
+        return self.method == "orca" or not self.model.is_default or self.space3d is not None or bool(self.teams)
 
 
 def _check_cov(value) -> np.ndarray:

@@ -81,7 +81,14 @@ def run(spec: Spec, seed=None, progress: bool = False) -> Trace:
     ``controls (T, N, 2)``, ``step_seconds (T,)`` (cell + controller time of the whole
     team), ``arrival_steps (N,)``; ``cell_A``/``cell_b`` ``(T, N, M, ·)`` when cells are
     recorded (default for N ≤ 64). Same seed → same trace.
+
+    Scenarios with another robot model, MPC, ORCA, a 3D space or teams run in
+    :func:`robofleet.avoidance.models_simulation.run_models` (chosen once, here).
     """
+    if spec.uses_models:
+        from .models_simulation import run_models
+
+        return run_models(spec, seed=seed, progress=progress)
     rng = as_generator(seed)
     n, dt = spec.robots.n, spec.dt
     starts, goals = sample_layout(spec, rng)
