@@ -17,7 +17,7 @@ def load(**kw):
 
 
 def test_duplicate_pattern_points_are_rejected_with_the_field_path():
-    with pytest.raises(ScenarioError, match=r"pattern\.points.*distinct points"):
+    with pytest.raises(ScenarioError, match=r"^<mapping>: pattern\.points: expected distinct points"):
         load(pattern={"kind": "points", "points": [[-10, 5], [-20, 0], [-10, 5]]})
 
 

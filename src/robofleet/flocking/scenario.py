@@ -30,7 +30,7 @@ from .hula_hoop import HulaHoopAlgorithm
 from .knowledge import ChiralityAlgorithm, MemoryAlgorithm, ObservableHeadingAlgorithm, SharedAxesAlgorithm
 from .leader import RandomTurnsLeader, ScriptedLeader, build_course, check_conditions, condition4_max, resolve_speeds
 from .model import LocalFrames
-from .patterns import Pattern, PatternKind, make_pattern
+from .patterns import Pattern, PatternKind, make_pattern, validate_points
 from .randomized import RandomizedAlgorithm
 from .schedulers import SchedulerSpec, run
 from .stripe import StripeAlgorithm
@@ -62,7 +62,7 @@ class PatternSpec(SpecModel):
         if self.kind == "file" and not self.path:
             raise ScenarioError("path", "a pattern file path for kind 'file'", None)
         if self.kind == "points":
-            make_pattern("points", points=self.points)
+            validate_points(self.points, field="points")
         return self
 
 
