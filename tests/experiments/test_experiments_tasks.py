@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import logging
 import os
 import signal
 import subprocess
@@ -44,12 +45,24 @@ def test_several_rows_per_task(tmp_path):
     assert frame.groupby("run_id")["part"].apply(list).tolist() == [[0, 1, 2], [0, 1, 2]]
 
 
-def test_identical_rows_whatever_the_executor(tmp_path):
+@pytest.fixture(scope="module")
+def dask_cluster():
+    """A real Dask LocalCluster with 2 worker processes; a task is not retried after it
+    killed a worker (``allowed-failures: 0``), which keeps the crash test short."""
+    dask = pytest.importorskip("dask")
+    distributed = pytest.importorskip("distributed")
+    with dask.config.set({"distributed.scheduler.allowed-failures": 0}):
+        with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None, silence_logs=logging.CRITICAL) as cluster:
+            yield cluster
+
+
+def test_identical_rows_whatever_the_executor(tmp_path, dask_cluster):
     """Serial, local processes and a real Dask LocalCluster (2 worker processes)."""
     tasks = make_tasks(10, rows=2)
     tasks[4]["fail"] = True
     frames = {
-        name: run_tasks(noisy_sum, tasks, tmp_path / name, executor=name, workers=2, progress=False)
+        name: run_tasks(noisy_sum, tasks, tmp_path / name, executor=name, workers=2, progress=False,
+                        scheduler=dask_cluster.scheduler_address if name == "dask" else None)
         for name in ("serial", "process", "dask")
     }
     reference = comparable(frames["serial"])
@@ -60,13 +73,15 @@ def test_identical_rows_whatever_the_executor(tmp_path):
     assert "compute_seconds" in frames["serial"] and "compute_seconds" not in reference
 
 
-def test_dask_on_an_existing_scheduler_address(tmp_path):
-    distributed = pytest.importorskip("distributed")
+def test_a_dask_worker_dying_is_recorded_and_the_others_finish(tmp_path, dask_cluster):
     tasks = make_tasks(6)
-    with distributed.LocalCluster(n_workers=1, threads_per_worker=2, processes=False, dashboard_address=None) as cluster:
-        frame = run_tasks(noisy_sum, tasks, tmp_path / "d", executor="dask", scheduler=cluster.scheduler_address, progress=False)
-    serial = run_tasks(noisy_sum, tasks, tmp_path / "s", executor="serial", progress=False)
-    pd.testing.assert_frame_equal(comparable(frame), comparable(serial))
+    tasks[0]["crash"] = True
+    frame = run_tasks(noisy_sum, tasks, tmp_path, executor="dask", scheduler=dask_cluster.scheduler_address, progress=False)
+    assert sorted(frame["run_id"]) == [t["run_id"] for t in tasks]
+    errors = frame.set_index("run_id")["error"]
+    assert errors["t000"].startswith("KilledWorker")
+    assert errors.isna().sum() >= 3  # the tasks on the surviving worker, at least
+    assert "\n" not in errors["t000"]
 
 
 @pytest.mark.parametrize("executor", ["serial", "process"])

@@ -228,7 +228,7 @@ def dask_results(distributed, client, cluster, fn: TaskFn, tasks: list[dict], wo
         window = n_workers * DASK_WINDOW_PER_WORKER
         pending = deque(tasks)
         in_flight: dict[Any, dict] = {}
-        completed = distributed.as_completed()
+        completed = distributed.as_completed(with_results=True, raise_errors=False)  # results fetched on the client's loop
 
         def submit_more() -> None:
             while pending and len(in_flight) < window:
@@ -238,12 +238,12 @@ def dask_results(distributed, client, cluster, fn: TaskFn, tasks: list[dict], wo
                 completed.add(future)
 
         submit_more()
-        for future in completed:
+        for future, result in completed:
             task = in_flight.pop(future.key)
             if future.status == "finished":
-                outcome = future.result()
-            else:
-                outcome = ("error", one_line(future.exception()))
+                outcome = result
+            else:  # the worker died or the task was cancelled; result is (type, exc, tb) or exc
+                outcome = ("error", one_line(result[1] if isinstance(result, tuple) else result))
             future.release()
             yield task, outcome
             submit_more()
