@@ -155,11 +155,12 @@ class ComparingDetector(IncrementalCycleDetector):
     progress = None
     compared = refused = 0
 
-    def try_flip(self, obstacle, new_label):
+    def try_flip(self, obstacle, new_label, progress=None):
+        assert progress is not None and np.array_equal(progress, self.progress)
         tentative = self.labels.copy()
         tentative[obstacle] = new_label
-        expected = not has_cycle_full(self.layout, tentative, self.progress)
-        got = super().try_flip(obstacle, new_label)
+        expected = not has_cycle_full(self.layout, tentative, progress)
+        got = super().try_flip(obstacle, new_label, progress)
         assert got == expected
         type(self).compared += 1
         type(self).refused += not got

@@ -35,7 +35,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from enum import Enum
-from graphlib import CycleError, TopologicalSorter
+import heapq
 
 import numpy as np
 from scipy.sparse import coo_matrix
@@ -190,13 +190,27 @@ class IncrementalCycleDetector:
         self.visited_last = 0
 
     def _initial_order(self) -> np.ndarray:
-        sorter = TopologicalSorter({w: list(p) for w, p in enumerate(self.pred)})
-        try:
-            sequence = list(sorter.static_order())
-        except CycleError as exc:
-            raise InfeasibleError(f"trajectories: expected plan labels without a cycle, received a cycle through segments {exc.args[1][:6]}") from None
-        order = np.empty(self.layout.n_nodes, dtype=np.intp)
-        order[np.array(sequence, dtype=np.intp)] = np.arange(len(sequence))
+        """A topological order close to plan time: Kahn's algorithm that always takes the
+        ready vertex whose segment starts earliest. New flip edges then mostly point
+        between nearby moments, which keeps the Pearce–Kelly search region small."""
+        v = self.layout.n_nodes
+        indegree = np.array([len(p) for p in self.pred])
+        start = self.layout.node_start
+        ready = [(int(start[x]), x) for x in np.flatnonzero(indegree == 0).tolist()]
+        heapq.heapify(ready)
+        order = np.full(v, -1, dtype=np.intp)
+        position = 0
+        while ready:
+            _, x = heapq.heappop(ready)
+            order[x] = position
+            position += 1
+            for y, count in self.succ[x].items():
+                indegree[y] -= count
+                if indegree[y] == 0:
+                    heapq.heappush(ready, (int(start[y]), y))
+        if position < v:
+            stuck = np.flatnonzero(order < 0)[:6].tolist()
+            raise InfeasibleError(f"trajectories: expected plan labels without a cycle, received a cycle among segments {stuck}")
         return order
 
     def _insert(self, u: int, w: int) -> None:
@@ -211,16 +225,28 @@ class IncrementalCycleDetector:
             else:
                 del table[a][b]
 
-    def add_edge(self, u: int, w: int) -> bool:
-        """Insert ``u → w`` unless it closes a cycle; return whether it was inserted."""
+    def add_edge(self, u: int, w: int, done: np.ndarray | None = None) -> bool:
+        """Insert ``u → w`` unless it closes a cycle; return whether it was inserted.
+
+        With ``done`` (vertices already entered) the searches stay in the active subgraph:
+        no edge leads from a vertex not entered to an entered one, so a cycle through
+        ``u → w`` lies in it, and the maintained order only has to stay valid there.
+        """
         order = self.order
         if w in self.succ[u] or order[u] < order[w]:
             self._insert(u, w)
             return True
-        forward = self._search(w, self.succ, lambda x: order[x] <= order[u], target=u)
+        lo, hi = order[w], order[u]
+        if done is None:
+            forward = self._search(w, self.succ, lambda x: order[x] <= hi, target=u)
+        else:
+            forward = self._search(w, self.succ, lambda x: order[x] <= hi and not done[x], target=u)
         if forward is None:
             return False
-        backward = self._search(u, self.pred, lambda x: order[x] >= order[w], target=None)
+        if done is None:
+            backward = self._search(u, self.pred, lambda x: order[x] >= lo, target=None)
+        else:
+            backward = self._search(u, self.pred, lambda x: order[x] >= lo and not done[x], target=None)
         self._reorder(forward, backward)
         self._insert(u, w)
         return True
@@ -248,11 +274,14 @@ class IncrementalCycleDetector:
         for x, slot in zip(back + fwd, slots):
             order[x] = slot
 
-    def try_flip(self, obstacle: int, new_label: int) -> bool:
+    def try_flip(self, obstacle: int, new_label: int, progress: np.ndarray | None = None) -> bool:
         """Give ``obstacle`` the label ``new_label`` unless that closes a cycle.
 
-        Returns ``True`` (flip kept) or ``False`` (graph unchanged, the robot keeps waiting).
+        ``progress`` (the robots' current steps) restricts the search to the active
+        subgraph. Returns ``True`` (flip kept) or ``False`` (graph unchanged, the robot
+        keeps waiting).
         """
+        done = None if progress is None else self.layout.done(progress)
         old_side, new_side = self._sides(obstacle, new_label)
         old_src, old_dst = self.layout.side_edges(old_side)
         new_src, new_dst = self.layout.side_edges(new_side)
@@ -261,11 +290,11 @@ class IncrementalCycleDetector:
             self._remove(u, w)
         added = []
         for u, w in zip(new_src.tolist(), new_dst.tolist()):
-            if not self.add_edge(u, w):
+            if not self.add_edge(u, w, done):
                 for a, b in added:
                     self._remove(a, b)
                 for a, b in zip(old_src.tolist(), old_dst.tolist()):
-                    self.add_edge(a, b)
+                    self.add_edge(a, b, done)
                 return False
             added.append((u, w))
         self.labels[obstacle] = new_label

@@ -203,7 +203,7 @@ class Executor:
             t0 = time.perf_counter()
             stats["tests"] += 1
             wanted = test(FlipContext(self.space, side, w, a, x, self.times, labels))
-            accepted = wanted and (detector is None or detector.try_flip(obstacle, w))
+            accepted = wanted and (detector is None or detector.try_flip(obstacle, w, x))
             stats["seconds"] += time.perf_counter() - t0
             if accepted:
                 labels[obstacle] = w

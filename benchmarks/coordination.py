@@ -1,0 +1,168 @@
+"""Speed figures of the coordination family (paper 000). Prints figures; asserts nothing.
+
+1. Coordination-space construction (swept-bounding-box pruning) for 20/50/100 robots with
+   long trajectories, against the naive dense grid of every pair (sampled pairs, scaled).
+2. Time per flip test: incremental cycle test (Pearce–Kelly) vs the full rebuild of the
+   active subgraph (edge arrays + strongly connected components), and vs rebuilding the
+   segment graph from scratch as the authors' release did; at 100 robots. Target ≥ 20×.
+3. Whole-experiment wall time: the Fig. 6 task for each robot count (serial, one instance).
+
+Run:  .venv/bin/python benchmarks/coordination.py [--quick]
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import numpy as np
+
+from robofleet.coordination.coordination_space import build_coordination_space, obstacle_grid
+from robofleet.coordination.label_flipping import KnownProbabilities
+from robofleet.coordination.segment_graph import IncrementalCycleDetector, build_segment_layout, has_cycle_full
+from robofleet.coordination.simulation import Executor, Method, Variant
+from robofleet.coordination.trajectories import make_trajectories
+
+RADIUS, STEP = 15.0, 5.0
+
+
+def synthetic_plan(n: int, rng: np.random.Generator, waypoints: int = 5, area: float = 2500.0, collision_free: bool = True):
+    """Polyline trajectories through random waypoints (~``waypoints`` × 150 steps each); with
+    ``collision_free`` each robot gets the smallest start delay that avoids the robots before it."""
+    paths = []
+    for _ in range(n):
+        pts = rng.uniform(0, area, (waypoints, 2))
+        seg = [np.linspace(a, b, max(2, int(np.linalg.norm(b - a) / STEP)), endpoint=False) for a, b in zip(pts[:-1], pts[1:])]
+        paths.append(np.vstack(seg + [pts[-1:]]))
+    if collision_free:
+        paths = _delays(paths)
+    return make_trajectories(paths, RADIUS, 0.1)
+
+
+def _delays(paths):
+    placed = np.empty((0, 0, 2))
+    out = []
+    for p in paths:
+        for delay in range(0, 20000, 10):
+            cand = np.vstack([np.repeat(p[:1], delay, axis=0), p])
+            if _clear(cand, placed):
+                break
+        out.append(cand)
+        t = max(placed.shape[1], len(cand))
+        padded = [np.vstack([q, np.repeat(q[-1:], t - len(q), axis=0)]) for q in out]
+        placed = np.stack(padded)
+    return out
+
+
+def _clear(cand, placed) -> bool:
+    if placed.shape[0] == 0:
+        return True
+    t = max(placed.shape[1], len(cand))
+    c = np.vstack([cand, np.repeat(cand[-1:], t - len(cand), axis=0)])
+    pl = placed if placed.shape[1] == t else np.concatenate([placed, np.repeat(placed[:, -1:], t - placed.shape[1], axis=1)], axis=1)
+    return bool(np.all(((pl - c[None]) ** 2).sum(-1) >= (2 * RADIUS) ** 2))
+
+
+def bench_space(counts, rng):
+    print("## coordination-space construction (long trajectories)")
+    print("| robots | steps per robot | obstacles | pruned build [s] | naive dense grid [s, est.] | speed-up |")
+    print("|---:|---:|---:|---:|---:|---:|")
+    for n in counts:
+        traj = synthetic_plan(n, rng, collision_free=False)
+        t0 = time.perf_counter()
+        space = build_coordination_space(traj, check_plan=False)
+        pruned = time.perf_counter() - t0
+        pairs = [(i, j) for i in range(n) for j in range(i + 1, n)]
+        sample = [pairs[k] for k in rng.choice(len(pairs), min(20, len(pairs)), replace=False)]
+        t0 = time.perf_counter()
+        for i, j in sample:
+            obstacle_grid(traj, i, j)
+        naive = (time.perf_counter() - t0) * len(pairs) / len(sample)
+        print(f"| {n} | {int(traj.lengths.mean())} | {space.n_obstacles} | {pruned:.2f} | {naive:.1f} | {naive / pruned:.0f}× |")
+
+
+class TimedDetector(IncrementalCycleDetector):
+    """Times every incremental flip test and the full rebuilds at the same state."""
+
+    progress = None
+    log: list = []
+    space = None
+
+    def try_flip(self, obstacle, new_label, progress=None):
+        tentative = self.labels.copy()
+        tentative[obstacle] = new_label
+        t0 = time.perf_counter()
+        full = not has_cycle_full(self.layout, tentative, self.progress)
+        t_full = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        layout = build_segment_layout(self.space)
+        rebuilt = not has_cycle_full(layout, tentative, self.progress)
+        t_rebuild = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        got = super().try_flip(obstacle, new_label, progress)
+        t_inc = time.perf_counter() - t0
+        assert got == full == rebuilt
+        type(self).log.append((t_inc, t_full, t_rebuild, got))
+        return got
+
+
+def bench_flip_tests(n, rng, max_steps):
+    import robofleet.coordination.simulation as sim
+
+    traj = synthetic_plan(n, rng)
+    space = build_coordination_space(traj)
+    layout = build_segment_layout(space)
+    prob = np.full(traj.positions.shape[:2], 0.3)
+    TimedDetector.space, TimedDetector.log = space, []
+
+    def always(ctx):
+        TimedDetector.progress = ctx.progress
+        return True
+
+    original = sim.IncrementalCycleDetector
+    sim.IncrementalCycleDetector = TimedDetector
+    try:
+        run = Executor(traj, space, Variant(Method.TFF, True), KnownProbabilities(prob, 0.1), prob, layout=layout,
+                       flip_test=always).run(1, max_steps)
+    finally:
+        sim.IncrementalCycleDetector = original
+    log = np.array(TimedDetector.log, dtype=float)
+    inc, full, rebuild = (np.median(log[:, k]) * 1e3 for k in range(3))
+    print(f"\n## flip test at {n} robots ({space.n_obstacles} obstacles, {layout.n_nodes} segment vertices, "
+          f"{len(log)} tests, {int((1 - log[:, 3]).sum())} refused, run finished: {run.finished})")
+    print("| cycle test | median time per flip test [ms] | speed-up of incremental |")
+    print("|---|---:|---:|")
+    print(f"| incremental (Pearce–Kelly, affected region only) | {inc:.3f} | 1× |")
+    print(f"| full: active-subgraph edges + SCC pass | {full:.3f} | {full / inc:.0f}× |")
+    print(f"| full: rebuild the segment graph + SCC pass (release) | {rebuild:.3f} | {rebuild / inc:.0f}× |")
+
+
+def bench_experiment(counts):
+    from robofleet.coordination.reproduce import make_tasks, run_instance
+
+    print("\n## whole experiment (one Fig. 6 task = plan + coordination space + six variants), serial")
+    print("| robots | wall time per instance [s] | planning [s] | six executions [s] |")
+    print("|---:|---:|---:|---:|")
+    total = 0.0
+    for n in counts:
+        task = make_tasks([n], 1, root_seed=11)[0]
+        t0 = time.perf_counter()
+        rows = run_instance(task)
+        wall = time.perf_counter() - t0
+        total += wall
+        print(f"| {n} | {wall:.1f} | {rows[0]['plan_seconds']:.1f} | {sum(r['run_seconds'] for r in rows):.1f} |")
+    print(f"\none instance of every count: {total:.1f} s → 10 instances ≈ {10 * total / 60:.1f} CPU-minutes")
+
+
+def main():
+    parser = argparse.ArgumentParser()
+    parser.add_argument("--quick", action="store_true", help="smaller sizes")
+    args = parser.parse_args()
+    rng = np.random.default_rng(0)
+    bench_space((20, 50) if args.quick else (20, 50, 100), rng)
+    bench_flip_tests(40 if args.quick else 100, rng, 3000 if args.quick else 20000)
+    bench_experiment((5, 10) if args.quick else (5, 10, 15, 20))
+
+
+if __name__ == "__main__":
+    main()
