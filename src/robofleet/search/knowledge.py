@@ -10,6 +10,10 @@ Each robot ``i`` keeps, as rows of bit sets (one bit per vertex, 64 vertices per
   (its map of the area so far; stop rule (4) asks for every discovered vertex visited),
 * ``blocked[i]``    — vertices it knows to be blocked: sensed obstacles and the vertices
   of robots detected as failed (failure information, step 3),
+* ``sensed[i]``     — vertices some robot stood on and sensed around, in its map: their
+  neighbourhood is known. A vertex can be known as visited before that — a broadcast choice
+  (step 5) marks the chosen vertex visited in the receivers' maps at once —, so stop rule
+  (4) also waits for the neighbourhood of every visited vertex,
 * ``targets[i]``    — ``T_k,i``: targets it knows.
 
 Rows are only ever written by the robot itself (sensing, its choice) or by
@@ -31,8 +35,8 @@ class RobotMaps:
     def __init__(self, n_robots: int, n_vertices: int, n_targets: int):
         words = -(-n_vertices // WORD)
         self.n_vertices = n_vertices
-        # layers: 0 visited, 1 discovered, 2 blocked
-        self.layers = np.zeros((n_robots, 3, words), dtype=np.uint64)
+        # layers: 0 visited, 1 discovered, 2 blocked, 3 sensed
+        self.layers = np.zeros((n_robots, 4, words), dtype=np.uint64)
         self.targets = np.zeros((n_robots, n_targets), dtype=bool)
 
     # -- bit-set primitives -------------------------------------------------------------
@@ -51,10 +55,6 @@ class RobotMaps:
         vertices = np.asarray(vertices, dtype=np.intp).ravel()
         if len(vertices):
             np.bitwise_or.at(self.layers, (robots, layer, vertices >> 6), ONE << (vertices & 63).astype(np.uint64))
-
-    def merge_rows(self, layer: int, robots: np.ndarray, bits: np.ndarray) -> None:
-        """OR the bit rows ``bits (m, W)`` into ``layer`` of the distinct ``robots (m,)``."""
-        self.layers[robots, layer] |= bits
 
     def as_bool(self, layer: int) -> np.ndarray:
         """``(n_robots, V)`` boolean view of one layer (for checks and plots, not hot paths)."""
@@ -86,6 +86,9 @@ class RobotMaps:
         self.targets[receivers] |= found
 
     def frontier_empty(self) -> np.ndarray:
-        """Stop rule (4) per robot: no discovered vertex is still unvisited and unblocked."""
-        visited, discovered, blocked = self.layers[:, 0], self.layers[:, 1], self.layers[:, 2]
-        return ~np.any(discovered & ~visited & ~blocked, axis=1)
+        """Stop rule (4) per robot: every vertex of its map that is not blocked has been
+        stood on and sensed around (so no discovered vertex is unvisited, and no visited
+        vertex has an unknown neighbourhood). The known vertices then form a set closed
+        under travellable edges: the whole accessible component."""
+        visited, discovered, blocked, sensed = (self.layers[:, k] for k in range(4))
+        return ~np.any((discovered | visited) & ~sensed & ~blocked, axis=1)

@@ -49,10 +49,11 @@ class SensingTables:
     wall_push: np.ndarray
 
     def step2_rows(self, situation: int) -> np.ndarray:
-        """``(V, 3, W)``: what step 2 adds to the visited / discovered / blocked layers of a
-        robot standing on each vertex (situation 2 also records inaccessible neighbours as visited)."""
+        """``(V, 4, W)``: what step 2 adds to the visited / discovered / blocked / sensed layers
+        of a robot standing on each vertex (situation 2 also records inaccessible neighbours
+        as visited)."""
         visited = self.self_bits | self.inaccessible_bits if situation == 2 else self.self_bits
-        return np.stack([visited, self.free_bits, self.inaccessible_bits], axis=1)
+        return np.stack([visited, self.free_bits, self.inaccessible_bits, self.self_bits], axis=1)
 
 
 def build_sensing(grid: Grid, targets: np.ndarray, r_so: float, r_st: float) -> SensingTables:
@@ -88,11 +89,3 @@ def vertex_bit_rows(n_vertices: int, members: np.ndarray, mask: np.ndarray) -> n
 def bit_words(n_vertices: int) -> int:
     """Number of 64-bit words of a vertex bit set."""
     return -(-n_vertices // 64)
-
-
-def within(points: np.ndarray, radius: float) -> np.ndarray:
-    """``(n, n)`` bool: pairs of distinct robots at distance ``≤ radius``."""
-    diff = points[:, None, :] - points[None, :, :]
-    near = np.einsum("ijd,ijd->ij", diff, diff) <= (radius + EPS) ** 2
-    np.fill_diagonal(near, False)
-    return near
