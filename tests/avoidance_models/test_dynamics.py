@@ -105,3 +105,13 @@ def test_model_parameters_are_validated():
         uni.UnicycleParams(v_max=-1.0, omega_max=1.0)
     with pytest.raises(ValueError):
         quad.QuadrotorParams(k_Dz=1.0)  # unknown key
+
+
+def test_quadrotor_braking_control_stops_a_moving_quadrotor():
+    params = quad.QuadrotorParams()
+    state = np.zeros((2, 9))
+    state[:, 3:5] = [[1.0, -0.5], [-0.8, 0.3]]
+    state[:, 8] = [0.0, 1.2]  # one with yaw
+    for _ in range(200):
+        state = quad.step(state, quad.braking_control(state, params), 0.05, params)
+    assert np.all(np.abs(state[:, 3:6]) < 1e-2)

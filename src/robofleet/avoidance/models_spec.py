@@ -23,7 +23,7 @@ from __future__ import annotations
 from typing import Literal, Optional
 
 import numpy as np
-from pydantic import Field, model_validator
+from pydantic import Field, field_validator, model_validator
 
 from ..core.errors import ScenarioError
 from ..dynamics.quadrotor import QuadrotorParams
@@ -73,6 +73,13 @@ class Box3DSpec(SpecModel):
     center: Point3
     size: tuple[float, float, float]
     yaw: float = 0.0
+
+    @field_validator("center", "size", mode="before")
+    @classmethod
+    def _three(cls, value, info):
+        if not isinstance(value, (list, tuple)) or len(value) != 3:
+            raise ScenarioError("", "three numbers [x, y, z]" if info.field_name == "center" else "three side lengths", value)
+        return value
 
     @model_validator(mode="after")
     def _size(self):

@@ -17,7 +17,7 @@ IPOPT (``nlpsol``), warm-started from the previous plan shifted by one step.
 
 When the solver fails or its plan leaves the cell, the robot applies its model's safe
 fallback (zero input; for the double integrator the brake of :mod:`.braking`; for the
-quadrotor the level-attitude, zero-climb input).
+quadrotor a tilt against its horizontal velocity, zero climb: :func:`~robofleet.dynamics.quadrotor.braking_control`).
 
 Deadlock (appendix C, :class:`GoalRotation`): when a robot that has not arrived moves
 less than ``Δp_min`` over the last ``n_dead`` steps, its goal is rotated clockwise by
@@ -112,7 +112,7 @@ def model_adapter(name: str, params, dim: int, dt: float) -> ModelAdapter:
         return ModelAdapter(name, 3, 2, 2, False, lambda x, u: uni.symbolic_step(x, u, dt, params), -hi, hi, (), lambda s: np.zeros((len(s), 2)))
     if name == "quadrotor":
         lo, hi = params.control_bounds()
-        return ModelAdapter(name, 9, 4, 3, False, lambda x, u: quad.symbolic_step(x, u, dt, params), lo, hi, (), lambda s: quad.hover_control(len(s)))
+        return ModelAdapter(name, 9, 4, 3, False, lambda x, u: quad.symbolic_step(x, u, dt, params), lo, hi, (), lambda s: quad.braking_control(s, params))
     raise ConfigError(f"model: expected one of {list(MODEL_NAMES)}, received {name!r}")
 
 

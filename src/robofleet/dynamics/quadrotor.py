@@ -97,3 +97,24 @@ def symbolic_step(x, u, dt: float, params: QuadrotorParams):
 def hover_control(n: int) -> np.ndarray:
     """The level-attitude, zero-climb input ``(n, 4)`` (the MPC's safe fallback)."""
     return np.zeros((n, CONTROL_DIM))
+
+
+def braking_control(state: np.ndarray, params: QuadrotorParams, time_constant: float = 0.5) -> np.ndarray:
+    """Inputs ``(n, 4)`` that decelerate the quadrotor (the MPC's safe fallback).
+
+    Horizontal: the steady tilt whose thrust gives the acceleration ``−v_xy/τ_b``
+    (Eq. (52) solved for the commanded angles at zero drag, ``tan θ = a_x'/g``,
+    ``tan φ = −a_y'/g`` in the yaw frame, divided by the attitude gains), clipped to
+    ``tilt_max``; vertical speed command 0; yaw rate 0.
+    """
+    s = np.asarray(state, dtype=float)
+    v = s[:, 3:5]
+    psi = s[:, 8]
+    accel = -v / time_constant
+    c, sn = np.cos(psi), np.sin(psi)
+    ax_body = c * accel[:, 0] + sn * accel[:, 1]
+    ay_body = -sn * accel[:, 0] + c * accel[:, 1]
+    theta_c = np.arctan(ax_body / params.gravity) / params.k_theta
+    phi_c = -np.arctan(ay_body / params.gravity) / params.k_phi
+    u = np.column_stack([phi_c, theta_c, np.zeros(len(s)), np.zeros(len(s))])
+    return saturate(u, params)
