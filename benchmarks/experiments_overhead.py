@@ -6,7 +6,8 @@
    ``start-up ≈ T(1)``, ``per task ≈ (T(N) − T(1)) / (N − 1)``, each T the best of 3.
 2. A real sweep (``--scenario``, default the shipped circle swap, ``--runs`` seeds) on
    every executor: wall time, runs/s, speed-up over serial, and whether the rows are
-   identical (timing columns aside).
+   identical (timing columns aside). Each executor first runs a small warm-up sweep, so
+   per-process imports and JIT compilation are not counted.
 
 Dask runs use one LocalCluster started beforehand (its start-up time is printed
 separately); serial and process figures include their own (small) start-up.
@@ -73,11 +74,15 @@ def real_sweep(scenario: Path, runs: int, workers: int, address: str) -> None:
     print("| executor | wall s | runs/s | speed-up vs serial | rows identical to serial |")
     print("|---|---:|---:|---:|---|")
     sweep = {"scenario": str(scenario.resolve()), "seeds": runs, "root_seed": 0}
+    warm_up = {**sweep, "seeds": 2 * workers, "root_seed": 1}
     reference, serial_seconds = None, None
     for executor in ("serial", "process", "dask"):
+        scheduler = address if executor == "dask" else None
         with tempfile.TemporaryDirectory() as store:
+            # imports and JIT compilation happen once per worker process: pay them first
+            # (forked process workers inherit them from this process, Dask workers do not)
+            run_sweep(warm_up, executor=executor, scheduler=scheduler, progress=False, workers=workers, out=Path(store) / "warm")
             start = time.perf_counter()
-            scheduler = address if executor == "dask" else None
             frame = run_sweep(sweep, executor=executor, scheduler=scheduler, progress=False, workers=workers, out=store)
             seconds = time.perf_counter() - start
         columns = deterministic_columns(frame)
