@@ -5,8 +5,9 @@ CCC 2017).
 Parts (one module each): :mod:`.grids` (T/S/H grids, accessibility), :mod:`.sensing`
 (r_so, r_st, r_c), :mod:`.knowledge` (per-robot maps and message exchange),
 :mod:`.decentralized` (step-4 order, rules (1) and (2), broadcast), :mod:`.simulation`
-(steps 1–8, stop rules (3)/(4), failures), :mod:`.timing` (rotation + trapezoidal
-translation), :mod:`.random_baseline` (RU), :mod:`.levy_flight` (LFP),
+(steps 1–8, stop rules (3)/(4), failures; single runs or lockstep batches of independent
+runs), :mod:`.policy` (per-robot random streams, step context), :mod:`.timing` (rotation +
+trapezoidal translation), :mod:`.random_baseline` (RU), :mod:`.levy_flight` (LFP),
 :mod:`.assumptions` (Assumptions 2.4, 2.5, 3.1.1–3.1.3), :mod:`.coverage` (detected share),
 :mod:`.scenario` (Spec, simulate), :mod:`.reproduce` (Fig. 7 and the coverage study).
 """

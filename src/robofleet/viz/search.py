@@ -34,7 +34,8 @@ def plot_fig7(summary: pd.DataFrame, path: str | Path) -> Path:
         ax.errorbar(rows["n_robots"], rows["mean_time"], yerr=rows["ci95"], marker=MARKERS.get(alg, "o"), capsize=3,
                     label=rows["label"].iloc[0])
     ax.set_xlabel("number of robots")
-    ax.set_ylabel("mean search time (s)")
+    ax.set_ylabel("mean search time (s, log scale)")
+    ax.set_yscale("log")
     ax.set_title("Search time, nine targets (mean ± 95 % CI)")
     ax.grid(alpha=0.3)
     ax.legend()
