@@ -22,3 +22,13 @@ def test_search_check_reports_every_assumption(capsys):
     for name in ("2.4", "2.5", "3.1.1", "3.1.2", "3.1.3"):
         assert f"holds  {name}" in text
     assert "Theorem 4.1 applies" in text
+
+
+def test_animation_and_route_plots(tmp_path):
+    from robofleet import load_scenario, simulate
+    from robofleet.viz.search import animate_trace, plot_routes
+
+    trace = simulate(load_scenario(shipped_scenario("failure_injection.yaml"), {"max_steps": 15}), seed=1)
+    gif = animate_trace(trace, tmp_path / "run.gif", max_frames=8)
+    png = plot_routes(trace, tmp_path / "routes.png", robots=[0, 2])
+    assert gif.stat().st_size > 1000 and png.stat().st_size > 1000

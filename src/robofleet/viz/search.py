@@ -108,7 +108,7 @@ def plot_routes(trace: Trace, path: str | Path, robots: list[int] | None = None,
 
 
 def animate_trace(trace: Trace, path: str | Path, fps: int = 6, max_frames: int = 150) -> Path:
-    """GIF of a search run: robots, their trails, visited vertices and found targets."""
+    """GIF of a search run: robots (failed ones crossed out), their trails and the visited vertices."""
     pos = trace.positions
     times = trace.arrays["time"][:, 0, 0] if "time" in trace.arrays else np.arange(len(pos), dtype=float)
     fig, ax = plt.subplots(figsize=(6.4, 5.4))
@@ -119,14 +119,18 @@ def animate_trace(trace: Trace, path: str | Path, fps: int = 6, max_frames: int 
     seen = ax.scatter([], [], s=14, c="tab:green", alpha=0.5, zorder=2)
     label = ax.set_title("")
     visited_sets = _visited_until(trace)
+    failed_at = {e["robot"]: e["step"] for e in trace.events if e["kind"] == "failure"}
+    dead = ax.scatter([], [], s=120, marker="x", c="black", zorder=6)
 
     def update(k: int):
         for r, line in enumerate(trails):
             line.set_data(pos[: k + 1, r, 0], pos[: k + 1, r, 1])
         dots.set_offsets(pos[k])
+        down = [r for r, step in failed_at.items() if step <= k]
+        dead.set_offsets(pos[k, down] if down else np.empty((0, 2)))
         seen.set_offsets(visited_sets(k))
         label.set_text(f"step {k}, t = {times[k]:.1f} s")
-        return [*trails, dots, seen, label]
+        return [*trails, dots, seen, dead, label]
 
     return save_gif(fig, update, frame_indices(len(pos), max_frames), path, fps=fps)
 
