@@ -31,6 +31,8 @@ from .helpers import small_spec
     ({"grid.kind": "pentagonal"}, "grid.kind", "triangular"),
     ({"algorithm": "lfp", "situation": 2, "require_guarantee": False}, "algorithm", "situation 2"),
     ({"bogus": 1}, "bogus", "unknown field"),
+    ({"workspace": {"rectangle": [0, 0, 0.2, 0.2]}, "targets": [[0.1, 0.1]], "robots": {"count": 1}}, "grid.a", "at least one grid vertex"),
+    ({"workspace.corner_radius": 5.0}, "workspace.corner_radius", "half the rectangle"),
 ])
 def test_bad_input_is_one_clear_line(overrides, field, text):
     with pytest.raises(ScenarioError) as err:

@@ -26,7 +26,7 @@ import numpy as np
 import shapely
 from pydantic import Field, field_validator, model_validator
 
-from ..core.errors import ScenarioError
+from ..core.errors import ConfigError, ScenarioError
 from ..core.geometry import ensure_ccw
 from ..core.rng import RngLike, as_generator, keyed_generator
 from ..core.trace import Trace
@@ -181,7 +181,10 @@ class Spec(SpecModel):
 
     @model_validator(mode="after")
     def _check(self):
-        grid = self.built_grid()
+        try:
+            grid = self.built_grid()
+        except ConfigError:
+            raise ScenarioError("grid.a", "an edge length that puts at least one grid vertex inside the area", self.grid.a) from None
         self._check_targets(grid)
         self._check_robots(grid)
         if self.situation == 1 and not self.targets:
