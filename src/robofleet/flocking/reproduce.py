@@ -94,14 +94,17 @@ def comparison_tasks(seeds: int, duration: float) -> list[dict]:
 
 
 def fig11_table(curves: pd.DataFrame) -> pd.DataFrame:
-    """Per pattern: time from which Δ_e (Δ_r) stays ≤ ξ (median over seeds, share of seeds), final values."""
+    """Per pattern: time from which Δ_e (Δ_r) stays ≤ ξ (median over seeds, share of seeds),
+    share of the last third of the run with Δ_r ≤ ξ, final values."""
     rows = []
     present = [p for p in FIG11_PATTERNS if p in set(curves["pattern"])]
     for pattern, g in ((p, curves[curves["pattern"] == p]) for p in present):
         per_run = []
         for _, run in g.groupby("run_id"):
             run = run.sort_values("t")
+            last = run["t"] >= run["t"].max() * 2 / 3
             per_run.append({
+                "share_r": float((run["delta_r"][last] <= run["xi"].iloc[0]).mean()),
                 "te": _stays_below(run["t"].to_numpy(), run["delta_e"].to_numpy(), run["xi"].iloc[0]),
                 "tr": _stays_below(run["t"].to_numpy(), run["delta_r"].to_numpy(), run["xi"].iloc[0]),
                 "de": run["delta_e"].iloc[-1], "dr": run["delta_r"].iloc[-1], "xi": run["xi"].iloc[0],
@@ -110,6 +113,7 @@ def fig11_table(curves: pd.DataFrame) -> pd.DataFrame:
         rows.append({"pattern": pattern, "runs": len(d), "ξ (median)": d["xi"].median(),
                      "Δe ≤ ξ: share": (d["te"].notna()).mean(), "Δe ≤ ξ from t (median)": d["te"].median(),
                      "Δr ≤ ξ: share": (d["tr"].notna()).mean(), "Δr ≤ ξ from t (median)": d["tr"].median(),
+                     "time with Δr ≤ ξ, last third (mean)": d["share_r"].mean(),
                      "final Δe (median)": d["de"].median(), "final Δr (median)": d["dr"].median()})
     return pd.DataFrame(rows)
 
