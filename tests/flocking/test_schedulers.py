@@ -116,3 +116,15 @@ def test_min_move_above_what_a_cycle_allows_is_rejected():
                                     "scheduler": {"kind": "async", "cycle_min": 0.5, "min_move": 1.0}, "duration": 10})
     with pytest.raises(ScenarioError, match="min_move"):
         robofleet.simulate(spec, seed=1)
+
+
+def test_run_checks_shapes_and_speeds_at_its_boundary():
+    from robofleet.core.errors import ConfigError
+    pat = wedge()
+    course = LeaderCourse.build([0, 0], 0.0, 0.1, np.array([10.0]), np.array([0.0]))
+    frames = LocalFrames.random(6, 0)
+    kw = dict(duration=2, scheduler_rng=np.random.default_rng(0), algorithm_rng=np.random.default_rng(0))
+    with pytest.raises(ConfigError, match="starts"):
+        run(BasicAlgorithm(), pat, frames, np.zeros((5, 2)), np.ones(6), course, SchedulerSpec(), **kw)
+    with pytest.raises(ConfigError, match="speeds > 0"):
+        run(BasicAlgorithm(), pat, frames, np.random.default_rng(1).uniform(0, 9, (6, 2)), np.array([1, 1, 1, 0, 1, 1.0]), course, SchedulerSpec(), **kw)

@@ -14,7 +14,22 @@ In every trace of this family, robot index 0 is the leader and indices ``1..m`` 
 followers.
 """
 
-from .metrics import d_distance, delta_series, estimated_target, real_target
-from .patterns import Pattern, make_pattern
+from .basic import BasicAlgorithm
+from .hula_hoop import HulaHoopAlgorithm
+from .knowledge import ChiralityAlgorithm, MemoryAlgorithm, ObservableHeadingAlgorithm, SharedAxesAlgorithm
+from .leader import FlockingConditionWarning, LeaderCourse, check_conditions
+from .metrics import convergence_time, d_distance, delta_series, estimated_target, real_target
+from .model import Decision, LocalFrames, Snapshot, look
+from .patterns import Pattern, make_pattern, validate_points
+from .randomized import RandomizedAlgorithm, ranking
+from .schedulers import SchedulerSpec, run
+from .stripe import StripeAlgorithm
 
-__all__ = ["Pattern", "make_pattern", "d_distance", "delta_series", "estimated_target", "real_target"]
+__all__ = [
+    "BasicAlgorithm", "StripeAlgorithm", "HulaHoopAlgorithm", "RandomizedAlgorithm", "ranking",
+    "ObservableHeadingAlgorithm", "MemoryAlgorithm", "ChiralityAlgorithm", "SharedAxesAlgorithm",
+    "LocalFrames", "Snapshot", "Decision", "look", "SchedulerSpec", "run",
+    "LeaderCourse", "check_conditions", "FlockingConditionWarning",
+    "Pattern", "make_pattern", "validate_points",
+    "d_distance", "delta_series", "estimated_target", "real_target", "convergence_time",
+]

@@ -33,7 +33,7 @@ from typing import Literal
 import numpy as np
 from pydantic import Field, model_validator
 
-from ..core.errors import ScenarioError
+from ..core.errors import ConfigError, ScenarioError
 from ..core.progress import tracked
 from ..scenarios.base import SpecModel
 from .leader import LeaderCourse
@@ -174,6 +174,20 @@ def _look_batches(spec: SchedulerSpec, m: int, duration: float, rng: np.random.G
         yield t, np.array([i]), np.array([tau])
 
 
+def _check_inputs(pattern: Pattern, frames: LocalFrames, starts, speeds) -> tuple[np.ndarray, np.ndarray]:
+    """Shapes and values checked once at the public boundary of :func:`run`."""
+    starts = np.asarray(starts, dtype=float)
+    speeds = np.asarray(speeds, dtype=float)
+    m = pattern.size
+    if starts.shape != (m, 2) or not np.all(np.isfinite(starts)):
+        raise ConfigError(f"starts: expected finite ({m}, 2) follower positions (one per slot), received shape {starts.shape}")
+    if speeds.shape != (m,) or not np.all(speeds > 0):
+        raise ConfigError(f"speeds: expected {m} speeds > 0, received {speeds.tolist()}")
+    if frames.angle.shape != (m,):
+        raise ConfigError(f"frames: expected {m} local frames, received {frames.angle.shape[0]}")
+    return starts, speeds
+
+
 def run(algorithm: Algorithm, pattern: Pattern, frames: LocalFrames, starts: np.ndarray, speeds: np.ndarray,
         course: LeaderCourse, spec: SchedulerSpec, *, duration: float, sample_dt: float = 1.0,
         scheduler_rng: np.random.Generator, algorithm_rng: np.random.Generator, progress: bool = False) -> RunResult:
@@ -188,8 +202,7 @@ def run(algorithm: Algorithm, pattern: Pattern, frames: LocalFrames, starts: np.
 
     Returns the sampled positions ``(T, 1 + m, 2)`` (leader at index 0) and the cycle log.
     """
-    starts = np.asarray(starts, dtype=float)
-    speeds = np.asarray(speeds, dtype=float)
+    starts, speeds = _check_inputs(pattern, frames, starts, speeds)
     m = len(starts)
     if spec.min_move > spec.rigidity * speeds.min() * spec.move_time_min:
         raise ScenarioError("scheduler.min_move", f"δ_f <= rigidity · min speed · shortest Move = {spec.rigidity * speeds.min() * spec.move_time_min:.4g}", spec.min_move)
