@@ -168,3 +168,24 @@ def test_heading_knowledge_gives_the_directed_formation(kind, basic_heading_runs
         assert r["converged_r"] and r["delta_r_final"] <= r["xi"], seed
     assert all(x["converged_e"] for x in basic_heading_runs)
     assert not all(x["converged_r"] for x in basic_heading_runs)
+
+
+def wrong_side_run(algorithm, duration=200):
+    """Sec. 5.1, problem 2: the wedge formed in front of the leader, which drives straight at it."""
+    from robofleet.flocking.metrics import delta_series, real_target
+    pattern = patterns.wedge()
+    starts = real_target(pattern, np.zeros(2), np.pi)              # the pattern turned round: in front
+    course = LeaderCourse.build([0.0, 0.0], 0.0, 0.5, np.array([duration + 2.0]), np.array([0.0]))
+    res = run(algorithm, pattern, LocalFrames.random(6, 3), starts, np.full(6, 2.0), course, SchedulerSpec(kind="fsync"),
+              duration=duration, scheduler_rng=np.random.default_rng(0), algorithm_rng=np.random.default_rng(1))
+    return delta_series(res.positions, res.headings, pattern)
+
+
+def test_basic_keeps_a_wrong_heading_formation_that_the_observed_heading_avoids():
+    """Sec. 5.1 problem 2 and Sec. 6.1: oblivious followers keep the mirrored-in-front
+    formation while the leader drives straight at them; seeing the heading fixes it."""
+    from robofleet.flocking.knowledge import ObservableHeadingAlgorithm
+    de, dr = wrong_side_run(BasicAlgorithm())
+    assert de.max() < 5.0 and dr.min() > 900.0          # formed, but facing the wrong way
+    de_h, dr_h = wrong_side_run(ObservableHeadingAlgorithm())
+    assert dr_h[-10:].max() < 5.0
