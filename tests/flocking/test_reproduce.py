@@ -1,6 +1,5 @@
 """The reproduction pipeline on a tiny budget: tables, plots, executor independence."""
 
-import numpy as np
 import pandas as pd
 
 from robofleet.experiments import run_tasks

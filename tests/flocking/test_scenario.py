@@ -9,7 +9,7 @@ import pytest
 import robofleet
 from robofleet.core.errors import ScenarioError
 from robofleet.flocking import patterns
-from robofleet.flocking.leader import FlockingConditionWarning, LeaderCourse, check_conditions, condition4_max, build_course, RandomTurnsLeader
+from robofleet.flocking.leader import FlockingConditionWarning, RandomTurnsLeader, build_course, check_conditions, condition4_max
 
 
 def load(**kw):
