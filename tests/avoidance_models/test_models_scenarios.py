@@ -117,3 +117,9 @@ def test_box_distance_matches_brute_force():
     brute = np.min(np.linalg.norm(pts[:, None] - box_pts[None], axis=-1), axis=1)
     d = box_distance(pts, centre, size, yaw)[:, 0]
     assert np.all(d <= brute + 1e-9) and np.all(brute - d < 0.08)
+
+
+def test_orca_robots_arrive_without_noise():
+    spec = robofleet.load_scenario(base(method="orca", max_steps=400, orca={"time_horizon": 5.0}))
+    summary = robofleet.simulate(spec, seed=2).summary()
+    assert summary["arrived"] == 1.0 and summary["collisions"] == 0

@@ -166,7 +166,9 @@ def _group(spec, model, v_max, sigma, flying, idx, starts, goals, dim) -> Group:
     g = Group(kind, model.controller, idx, params, v_max, sigma, flying, state, arrived=np.zeros(n, bool))
     if dim == 3 and not flying:
         g.z = ground_height(spec)
-    if model.controller == "mpc":
+    if spec.method == "orca":
+        pass  # ORCA keeps only the arrival flags
+    elif model.controller == "mpc":
         g.mpc = BuavcMPC(kind, params, dim=g.plane_dim, dt=spec.dt, config=model.mpc, n_robots=n)
     elif kind == "single_integrator":
         g.si_state = ControllerState.initial(n, spec.deadlock.window)
