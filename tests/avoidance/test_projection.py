@@ -45,8 +45,10 @@ def test_projection_matches_brute_force(seed, m):
             assert proj.empty[i]
         else:
             assert not proj.empty[i]
-            assert np.linalg.norm(proj.point[i] - goals[i]) <= np.linalg.norm(ref - goals[i]) + 1e-9
-            assert np.all(A @ proj.point[i] <= b + 1e-8)
+            best = np.linalg.norm(ref - goals[i])
+            scale = 1.0 + best + np.abs(ref).max()  # nearly parallel lines meet far away
+            assert np.linalg.norm(proj.point[i] - goals[i]) <= best + 1e-9 * scale
+            assert np.all(A @ proj.point[i] <= b + 1e-8 * scale)
 
 
 def test_goal_inside_is_returned_unchanged_and_kkt_holds():
