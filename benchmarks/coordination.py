@@ -26,41 +26,44 @@ from robofleet.coordination.trajectories import make_trajectories
 RADIUS, STEP = 15.0, 5.0
 
 
-def synthetic_plan(n: int, rng: np.random.Generator, waypoints: int = 5, area: float = 2500.0, collision_free: bool = True):
-    """Polyline trajectories through random waypoints (~``waypoints`` × 150 steps each); with
-    ``collision_free`` each robot gets the smallest start delay that avoids the robots before it."""
-    paths = []
-    for _ in range(n):
-        pts = rng.uniform(0, area, (waypoints, 2))
-        seg = [np.linspace(a, b, max(2, int(np.linalg.norm(b - a) / STEP)), endpoint=False) for a, b in zip(pts[:-1], pts[1:])]
-        paths.append(np.vstack(seg + [pts[-1:]]))
-    if collision_free:
-        paths = _delays(paths)
-    return make_trajectories(paths, RADIUS, 0.1)
+def synthetic_plan(n: int, rng: np.random.Generator, waypoints: int = 5, collision_free: bool = True):
+    """Long trajectories at constant density (the square grows with ``n``).
 
+    ``collision_free=False``: polylines through random waypoints (~1000+ steps), for the
+    construction benchmark. ``collision_free=True``: straight lines from the left edge to the
+    right edge (starts and goals spaced apart, so the plan is non-conflicting by
+    construction), each robot delayed by the smallest delay that avoids all earlier robots —
+    computed exactly from the close point pairs (k-d trees), not by trial.
+    """
+    from scipy.spatial import cKDTree
 
-def _delays(paths):
-    placed = np.empty((0, 0, 2))
-    out = []
-    for p in paths:
-        for delay in range(0, 20000, 10):
-            cand = np.vstack([np.repeat(p[:1], delay, axis=0), p])
-            if _clear(cand, placed):
-                break
-        out.append(cand)
-        t = max(placed.shape[1], len(cand))
-        padded = [np.vstack([q, np.repeat(q[-1:], t - len(q), axis=0)]) for q in out]
-        placed = np.stack(padded)
-    return out
-
-
-def _clear(cand, placed) -> bool:
-    if placed.shape[0] == 0:
-        return True
-    t = max(placed.shape[1], len(cand))
-    c = np.vstack([cand, np.repeat(cand[-1:], t - len(cand), axis=0)])
-    pl = placed if placed.shape[1] == t else np.concatenate([placed, np.repeat(placed[:, -1:], t - placed.shape[1], axis=1)], axis=1)
-    return bool(np.all(((pl - c[None]) ** 2).sum(-1) >= (2 * RADIUS) ** 2))
+    side = 2500.0 * np.sqrt(n / 20)
+    if not collision_free:
+        paths = []
+        for _ in range(n):
+            pts = rng.uniform(0, side, (waypoints, 2))
+            seg = [np.linspace(a, b, max(2, int(np.linalg.norm(b - a) / STEP)), endpoint=False) for a, b in zip(pts[:-1], pts[1:])]
+            paths.append(np.vstack(seg + [pts[-1:]]))
+        return make_trajectories(paths, RADIUS, 0.1)
+    side = max(side, n * 4 * RADIUS)
+    ys = rng.permutation(np.linspace(0, side, n))
+    yg = rng.permutation(np.linspace(0, side, n))
+    placed_pts, placed_t, timed = np.empty((0, 2)), np.empty(0, dtype=int), []
+    for y0, y1 in zip(ys, yg):
+        a, b = np.array([0.0, y0]), np.array([side, y1])
+        path = a + (b - a) * np.linspace(0, 1, int(np.linalg.norm(b - a) / STEP) + 1)[:, None]
+        delay = 0
+        if len(placed_pts):
+            pairs = cKDTree(path).sparse_distance_matrix(cKDTree(placed_pts), 2 * RADIUS, output_type="ndarray")
+            d = np.unique(placed_t[pairs["j"]] - pairs["i"])
+            d = d[d >= 0]
+            gaps = np.flatnonzero(d != np.arange(len(d)))
+            delay = int(gaps[0]) if len(gaps) else len(d)
+        traj = np.vstack([np.repeat(path[:1], delay, axis=0), path])
+        timed.append(traj)
+        placed_pts = np.vstack([placed_pts, traj])
+        placed_t = np.concatenate([placed_t, np.arange(len(traj))])
+    return make_trajectories(timed, RADIUS, 0.1)
 
 
 def bench_space(counts, rng):

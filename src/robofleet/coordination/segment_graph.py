@@ -186,7 +186,9 @@ class IncrementalCycleDetector:
         src, dst = layout.active_edges(self.labels)
         for u, w in zip(src.tolist(), dst.tolist()):
             self._insert(u, w)
-        self.order = self._initial_order()
+        self.order = self._initial_order().tolist()  # topological index of every vertex (a list: fast scalar access)
+        self._node_robot = layout.node_robot.tolist()
+        self._node_start = layout.node_start.tolist()
         self.visited_last = 0
 
     def _initial_order(self) -> np.ndarray:
@@ -225,28 +227,29 @@ class IncrementalCycleDetector:
             else:
                 del table[a][b]
 
-    def add_edge(self, u: int, w: int, done: np.ndarray | None = None) -> bool:
+    def add_edge(self, u: int, w: int, progress: list[int] | None = None) -> bool:
         """Insert ``u → w`` unless it closes a cycle; return whether it was inserted.
 
-        With ``done`` (vertices already entered) the searches stay in the active subgraph:
-        no edge leads from a vertex not entered to an entered one, so a cycle through
-        ``u → w`` lies in it, and the maintained order only has to stay valid there.
+        With ``progress`` the searches skip vertices already entered and stay in the active
+        subgraph: no edge leads from a vertex not entered to an entered one, so a cycle
+        through ``u → w`` lies in it, and the maintained order only has to stay valid there.
         """
         order = self.order
         if w in self.succ[u] or order[u] < order[w]:
             self._insert(u, w)
             return True
         lo, hi = order[w], order[u]
-        if done is None:
+        if progress is None:
             forward = self._search(w, self.succ, lambda x: order[x] <= hi, target=u)
         else:
-            forward = self._search(w, self.succ, lambda x: order[x] <= hi and not done[x], target=u)
+            robot, start = self._node_robot, self._node_start
+            forward = self._search(w, self.succ, lambda x: order[x] <= hi and progress[robot[x]] < start[x], target=u)
         if forward is None:
             return False
-        if done is None:
+        if progress is None:
             backward = self._search(u, self.pred, lambda x: order[x] >= lo, target=None)
         else:
-            backward = self._search(u, self.pred, lambda x: order[x] >= lo and not done[x], target=None)
+            backward = self._search(u, self.pred, lambda x: order[x] >= lo and progress[robot[x]] < start[x], target=None)
         self._reorder(forward, backward)
         self._insert(u, w)
         return True
@@ -281,7 +284,7 @@ class IncrementalCycleDetector:
         subgraph. Returns ``True`` (flip kept) or ``False`` (graph unchanged, the robot
         keeps waiting).
         """
-        done = None if progress is None else self.layout.done(progress)
+        steps = None if progress is None else [int(v) for v in progress]
         old_side, new_side = self._sides(obstacle, new_label)
         old_src, old_dst = self.layout.side_edges(old_side)
         new_src, new_dst = self.layout.side_edges(new_side)
@@ -290,11 +293,11 @@ class IncrementalCycleDetector:
             self._remove(u, w)
         added = []
         for u, w in zip(new_src.tolist(), new_dst.tolist()):
-            if not self.add_edge(u, w, done):
+            if not self.add_edge(u, w, steps):
                 for a, b in added:
                     self._remove(a, b)
                 for a, b in zip(old_src.tolist(), old_dst.tolist()):
-                    self.add_edge(a, b, done)
+                    self.add_edge(a, b, steps)
                 return False
             added.append((u, w))
         self.labels[obstacle] = new_label
