@@ -123,3 +123,17 @@ def test_orca_robots_arrive_without_noise():
     spec = robofleet.load_scenario(base(method="orca", max_steps=400, orca={"time_horizon": 5.0}))
     summary = robofleet.simulate(spec, seed=2).summary()
     assert summary["arrived"] == 1.0 and summary["collisions"] == 0
+
+
+def test_ground_section_ignores_floor_and_ceiling_but_not_robots():
+    from robofleet.avoidance.cell import Cells, Kind
+    from robofleet.avoidance.models_simulation import _section
+
+    A = np.array([[[0, 0, -1.0], [0, 0, 1.0], [0.6, 0, 0.8], [0, 0, 1.0]]])
+    b = np.array([[-0.32, 2.0, 1.0, 0.1]])
+    kind = np.array([[Kind.WALL, Kind.WALL, Kind.ROBOT, Kind.ROBOT]], np.int8)
+    cells = _section(Cells(A, b, np.ones((1, 4), bool), kind, np.zeros((1, 4), np.intp)), 0.2)
+    assert list(cells.valid[0]) == [False, False, True, True]
+    np.testing.assert_allclose(cells.A[0, 2], [1.0, 0.0])
+    np.testing.assert_allclose(cells.b[0, 2], (1.0 - 0.8 * 0.2) / 0.6)
+    assert cells.b[0, 3] < 0  # a quadrotor plane below the ground robot: its section is empty

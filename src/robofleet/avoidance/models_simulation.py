@@ -11,7 +11,8 @@ move, and collisions are judged on true positions.
 In a 3-D space every robot's cell is built in R³ from all estimates; ground robots
 (every model but the quadrotor) move in the plane ``z = z_g`` (floor + r_s) and use their
 cell's section with that plane, ``{(x, y) : a_xy·(x, y) ≤ b − a_z z_g}`` (rows normalised;
-rows with ``a_xy ≈ 0`` are dropped when satisfied and make the cell empty otherwise).
+rows with ``a_xy ≈ 0`` are dropped when satisfied and make the cell empty otherwise, except
+the floor and ceiling walls, which do not bound ground robots).
 """
 
 from __future__ import annotations
@@ -348,7 +349,7 @@ def _section(cells: Cells, z: float) -> Cells:
     norm = np.linalg.norm(a_xy, axis=-1)
     b = cells.b - cells.A[..., 2] * z
     flat = norm < 1e-9
-    keep = cells.valid & ~(flat & (b >= 0))
+    keep = cells.valid & ~(flat & ((b >= 0) | (cells.kind == int(Kind.WALL))))  # floor and ceiling do not bound ground robots
     A = np.where(flat[..., None], 0.0, a_xy / np.where(flat, 1.0, norm)[..., None])
     b = np.where(flat, np.where(b >= 0, 1.0, b), b / np.where(flat, 1.0, norm))
     return Cells(A, np.where(keep, b, 1.0), keep, cells.kind, cells.source)

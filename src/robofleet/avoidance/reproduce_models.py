@@ -36,7 +36,7 @@ MODELS = {
     "double_integrator": ("avoidance_models/double_integrator.yaml", ("buavc", "bvc", "bvc_inflated"), (0.05, 0.1, 0.2), 1.0),
     "diff_drive": ("avoidance_models/diff_drive.yaml", ("buavc", "bvc", "bvc_inflated"), (0.03, 0.06, 0.12), 1.0),
     "quadrotor": ("avoidance_models/quadrotors_3d.yaml", ("buavc", "bvc", "bvc_inflated"), (0.05, 0.1), 0.2),
-    "heterogeneous": ("avoidance_models/heterogeneous.yaml", ("buavc", "bvc", "bvc_inflated"), (0.04,), 0.2),
+    "heterogeneous": ("avoidance_models/heterogeneous.yaml", ("buavc", "bvc", "bvc_inflated"), (0.04,), 0.4),
 }
 DELTAS = (0.01, 0.05, 0.1, 0.2)
 DELTA_MODELS = ("double_integrator", "diff_drive")

@@ -31,7 +31,7 @@ def plot_models(noise, delta, out_dir) -> list[Path]:
         axes[1, col].set_xlabel("σ [m]")
     axes[0, 0].set_ylabel("runs with a collision [%]")
     axes[1, 0].set_ylabel("success [%]")
-    axes[0, -1].legend(fontsize=7)
+    axes[0, 0].legend(fontsize=7)
     fig.tight_layout()
     paths = [out_dir / "models_noise.png"]
     fig.savefig(paths[0], dpi=120)
