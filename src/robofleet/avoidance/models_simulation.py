@@ -336,6 +336,8 @@ class _World:
             hits = dist.min(axis=2) < self.spec.robots.radius - 1e-7
             out["min_obstacle_distance"] = float(dist.min())
             out["obstacle_collisions"] = int(hits.any(axis=0).sum())
+            if out["obstacle_collisions"]:
+                out["success"] = False  # the generic summary does not see 3D boxes
         return out
 
 

@@ -137,6 +137,7 @@ AGG = {
 def tables(frame: pd.DataFrame) -> tuple[pd.DataFrame, pd.DataFrame]:
     """Aggregates: per (model, method, σ) and per (model, δ)."""
     ok = frame[frame["error"].isna()] if "error" in frame else frame
+    ok = ok.assign(success=ok["success"].astype(bool) & ~ok["run_collided"].astype(bool))  # a run with any contact failed
     noise = ok[ok["sweep"] == "noise"].groupby(["model", "method", "sigma"]).agg(**AGG).reset_index()
     delta = ok[ok["sweep"] == "delta"].groupby(["model", "delta"]).agg(**AGG).reset_index()
     order = {m: k for k, m in enumerate(MODELS)}
