@@ -20,7 +20,7 @@ import numpy as np
 from robofleet.coordination.coordination_space import build_coordination_space, obstacle_grid
 from robofleet.coordination.label_flipping import KnownProbabilities
 from robofleet.coordination.segment_graph import IncrementalCycleDetector, build_segment_layout, has_cycle_full
-from robofleet.coordination.simulation import Executor, Method, Variant
+from robofleet.coordination.simulation import PlanExecutor, Method, Variant
 from robofleet.coordination.trajectories import make_trajectories
 
 RADIUS, STEP = 15.0, 5.0
@@ -125,7 +125,7 @@ def bench_flip_tests(n, rng, max_steps):
     original = sim.IncrementalCycleDetector
     sim.IncrementalCycleDetector = TimedDetector
     try:
-        run = Executor(traj, space, Variant(Method.TFF, True), KnownProbabilities(prob, 0.1), prob, layout=layout,
+        run = PlanExecutor(traj, space, Variant(Method.TFF, True), KnownProbabilities(prob, 0.1), prob, layout=layout,
                        flip_test=always).run(1, max_steps)
     finally:
         sim.IncrementalCycleDetector = original

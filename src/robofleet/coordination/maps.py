@@ -28,6 +28,7 @@ import shapely
 from shapely.geometry import Polygon, box
 
 from ..core.errors import InfeasibleError
+from ..core.geometry import ensure_ccw
 from ..core.workspace import Region, Workspace
 
 DISTURBANCE_REGION = np.array([[650.0, 1950.0], [1050.0, 1950.0], [600.0, 2400.0], [200.0, 2400.0]])
@@ -67,8 +68,6 @@ def workspace_from_free_space(free, regions=()) -> Workspace:
     """A workspace whose bounds are the free polygon's exterior and whose obstacles are its holes."""
     exterior = np.asarray(free.exterior.coords, dtype=float)[:-1]
     holes = tuple(np.asarray(h.coords, dtype=float)[:-1] for h in free.interiors)
-    from ..core.geometry import ensure_ccw
-
     return Workspace(ensure_ccw(exterior), tuple(ensure_ccw(h) for h in holes), tuple(regions))
 
 

@@ -31,6 +31,7 @@ import numpy as np
 import shapely
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import dijkstra
+from scipy.spatial import cKDTree
 
 from ..core.errors import InfeasibleError, ScenarioError
 from ..core.geometry import point_segment_distance
@@ -75,8 +76,6 @@ def build_roadmap(workspace: Workspace, settings: PlannerSettings, extra_points:
     grid = np.column_stack([gx.ravel(), gy.ravel()])
     grid = grid[shapely.contains_xy(eroded, grid[:, 0], grid[:, 1])]
     nodes = np.concatenate([grid, np.asarray(extra_points, dtype=float).reshape(-1, 2)])
-    from scipy.spatial import cKDTree
-
     pairs = cKDTree(nodes).query_pairs(settings.connection_radius, output_type="ndarray")
     lines = shapely.linestrings(np.stack([nodes[pairs[:, 0]], nodes[pairs[:, 1]]], axis=1))
     pairs = pairs[shapely.contains(eroded, lines) | shapely.covers(eroded, lines)]

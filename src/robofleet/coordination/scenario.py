@@ -24,6 +24,7 @@ import numpy as np
 from pydantic import Field, field_validator, model_validator
 
 from ..core.errors import ScenarioError
+from ..core.geometry import ensure_ccw
 from ..core.rng import RngLike, keyed_generator
 from ..core.trace import Trace
 from ..core.workspace import Region, Workspace
@@ -33,7 +34,7 @@ from .label_flipping import KnownProbabilities, LearnedProbabilities
 from .maps import probability_map, sample_flow_instance, x_corridor_workspace
 from .planner import PlannerSettings, check_endpoints, plan_prioritized
 from .segment_graph import Resolution
-from .simulation import Estimate, Execution, Executor, Method, Variant
+from .simulation import Estimate, Execution, PlanExecutor, Method, Variant
 from .trajectories import Trajectories, load_trajectories
 
 
@@ -149,8 +150,6 @@ def build_workspace(spec: Spec) -> Workspace:
     if w.preset == "x_corridor" and w.bounds is None:
         base = x_corridor_workspace(spec.disturbance.region_probability)
         return Workspace(base.bounds, base.obstacles, base.regions + extra)
-    from ..core.geometry import ensure_ccw
-
     return Workspace(ensure_ccw(np.asarray(w.bounds, float)), tuple(ensure_ccw(np.asarray(o, float)) for o in w.obstacles), extra)
 
 
@@ -202,8 +201,8 @@ def probabilities_along(traj: Trajectories, workspace: Workspace, base_probabili
 
 def make_executor(traj: Trajectories, space: CoordinationSpace, workspace: Workspace, variant: Variant,
                   base_probability: float, estimate: Estimate = Estimate.KNOWN, resolution: Resolution = Resolution.EXACT,
-                  learned_cell: float = 150.0, layout=None) -> Executor:
-    """An :class:`Executor` wired with the map's probabilities (known or learned online)."""
+                  learned_cell: float = 150.0, layout=None) -> PlanExecutor:
+    """An :class:`PlanExecutor` wired with the map's probabilities (known or learned online)."""
     prob = probabilities_along(traj, workspace, base_probability)
     cells = None
     if estimate is Estimate.LEARNED:
@@ -215,7 +214,7 @@ def make_executor(traj: Trajectories, space: CoordinationSpace, workspace: Works
         times = LearnedProbabilities(cells, int(cells.max()) + 1, traj.dt, prior=base_probability)
     else:
         times = KnownProbabilities(prob, traj.dt)
-    return Executor(traj, space, variant, times, prob, layout=layout, resolution=resolution, observe_cells=cells)
+    return PlanExecutor(traj, space, variant, times, prob, layout=layout, resolution=resolution, observe_cells=cells)
 
 
 def simulate(spec: Spec, seed: RngLike = None, progress: bool = False) -> Trace:

@@ -25,7 +25,7 @@ from ..core.rng import keyed_generator
 from .coordination_space import CoordinationSpace
 from .label_flipping import FlipContext, KnownProbabilities, LearnedProbabilities, flip_eligible, tfa_wants_flip, tff_wants_flip
 from .rmtrack import ActionRule
-from .segment_graph import IncrementalCycleDetector, Resolution, SegmentLayout, build_segment_layout
+from .segment_graph import IncrementalCycleDetector, Resolution, SegmentLayout, build_segment_layout, has_cycle_full
 from .trajectories import Trajectories
 
 DISTURBANCE_BLOCK = 256
@@ -110,7 +110,7 @@ class Execution:
 
 
 @dataclass
-class Executor:
+class PlanExecutor:
     """Runs one variant on one plan.
 
     Parameters
@@ -233,8 +233,6 @@ class Executor:
         return len(i)
 
     def _cycle_now(self, labels, x) -> bool:
-        from .segment_graph import has_cycle_full
-
         if self.layout is None:
             self.layout = build_segment_layout(self.space, self.resolution)
         return has_cycle_full(self.layout, labels, x)
