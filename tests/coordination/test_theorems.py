@@ -194,3 +194,27 @@ def test_incremental_comparison_is_exercised():
     for seed in range(40):
         test_incremental_and_full_cycle_tests_agree.hypothesis.inner_test(2 * seed + 1, 7, Resolution.EXACT)
     assert ComparingDetector.compared > 10 and ComparingDetector.refused > 0
+
+
+def test_theorem4_needs_flips_at_the_entrance():
+    """Three robots circling a triangle of crossings: disjoint collision segments, yet a
+    label assignment that no entrance flip can produce closes a cycle (see theory.py)."""
+    from coordination_instances import line
+    from robofleet.coordination.theory import check_theory
+    from robofleet.coordination.trajectories import make_trajectories
+
+    a, b, c = np.array([0.0, 0.0]), np.array([20.0, 0.0]), np.array([10.0, 17.0])
+    paths = [line(b + 0.5 * (b - a), a - 0.5 * (b - a), 0.25),            # robot 0: B then A
+             line(a - 0.5 * (c - a), c + 0.5 * (c - a), 0.25, 300),       # robot 1: A then C
+             line(c - 0.5 * (b - c), b + 0.5 * (b - c), 0.25, 600)]       # robot 2: C then B
+    traj = make_trajectories(paths, 1.0, 0.1)
+    space = build_coordination_space(traj)
+    report = check_theory(traj, space)
+    assert report.non_conflicting and report.disjoint_segments and space.n_obstacles == 3
+    layout = build_segment_layout(space)
+    start = np.zeros(3, dtype=int)
+    assert not has_cycle_full(layout, space.initial_labels, start)
+    labels = space.initial_labels.copy()
+    pair = {(int(i), int(j)): k for k, (i, j) in enumerate(zip(space.robot_i, space.robot_j))}
+    labels[pair[(0, 1)]], labels[pair[(1, 2)]], labels[pair[(0, 2)]] = 0, 1, 2  # A: 0 first, C: 1 first, B: 2 first
+    assert has_cycle_full(layout, labels, start)
