@@ -15,7 +15,9 @@ always-true ``0·p ≤ 1``. Linear models (single and double integrator) are sol
 (qpOASES through casadi's ``qpsol``), nonlinear ones (unicycle, quadrotor) as an NLP with
 IPOPT (``nlpsol``), warm-started from the previous plan shifted by one step.
 
-When the solver fails or its plan leaves the cell, the robot applies its model's safe
+The returned inputs are rolled out with the simulator's own step; when that rollout
+leaves the cell (e.g. IPOPT stopped at its iteration cap), the previous plan shifted by
+one step is used if its rollout stays in the new cell; otherwise the robot applies its model's safe
 fallback (zero input; for the double integrator the brake of :mod:`.braking`; for the
 quadrotor a tilt against its horizontal velocity, zero climb: :func:`~robofleet.dynamics.quadrotor.braking_control`).
 
@@ -49,7 +51,7 @@ ModelName = Literal["single_integrator", "double_integrator", "unicycle", "quadr
 MODEL_NAMES = ("single_integrator", "double_integrator", "unicycle", "quadrotor")
 _POLYGON_SIDES = 8
 _CELL_TOL = 1e-9
-CELL_MARGIN = 1e-4  # the solver sees the cell shrunk by this much, so that a plan within the
+CELL_MARGIN = 1e-3  # the solver sees the cell shrunk by 1 mm, so that a plan within the
 #                     solver's constraint tolerance lies in the true cell (checked before use)
 QP_SOLVER = "qpoases"
 QP_OPTIONS = {
@@ -95,6 +97,7 @@ class ModelAdapter:
     u_hi: np.ndarray
     norm_limits: tuple  # ((kind "u"|"x", slice, limit), ...)
     fallback: Callable  # (states (n, nx)) -> controls (n, nu)
+    numeric_step: Callable  # (states (n, nx), controls (n, nu)) -> states, the simulator's step
 
 
 def model_adapter(name: str, params, dim: int, dt: float) -> ModelAdapter:
@@ -102,17 +105,19 @@ def model_adapter(name: str, params, dim: int, dt: float) -> ModelAdapter:
     inf = np.inf
     if name == "single_integrator":
         return ModelAdapter(name, dim, dim, dim, True, lambda x, u: x + u * dt, np.full(dim, -inf), np.full(dim, inf),
-                            (("u", slice(0, dim), params.v_max),), lambda s: np.zeros((len(s), dim)))
+                            (("u", slice(0, dim), params.v_max),), lambda s: np.zeros((len(s), dim)), lambda x, u: x + u * dt)
     if name == "double_integrator":
         return ModelAdapter(name, 2 * dim, dim, dim, True, lambda x, u: di.symbolic_step(x, u, dt, params, dim), np.full(dim, -inf), np.full(dim, inf),
                             (("u", slice(0, dim), params.a_max), ("x", slice(dim, 2 * dim), params.v_max)),
-                            lambda s: braking_control(s[:, dim:], params.a_max, dt))
+                            lambda s: braking_control(s[:, dim:], params.a_max, dt), lambda x, u: di.step(x, u, dt, params))
     if name == "unicycle":
         hi = np.array([params.v_max, params.omega_max])
-        return ModelAdapter(name, 3, 2, 2, False, lambda x, u: uni.symbolic_step(x, u, dt, params), -hi, hi, (), lambda s: np.zeros((len(s), 2)))
+        return ModelAdapter(name, 3, 2, 2, False, lambda x, u: uni.symbolic_step(x, u, dt, params), -hi, hi, (), lambda s: np.zeros((len(s), 2)),
+                            lambda x, u: uni.step(x, u, dt, params))
     if name == "quadrotor":
         lo, hi = params.control_bounds()
-        return ModelAdapter(name, 9, 4, 3, False, lambda x, u: quad.symbolic_step(x, u, dt, params), lo, hi, (), lambda s: quad.braking_control(s, params))
+        return ModelAdapter(name, 9, 4, 3, False, lambda x, u: quad.symbolic_step(x, u, dt, params), lo, hi, (), lambda s: quad.braking_control(s, params),
+                            lambda x, u: quad.step(x, u, dt, params))
     raise ConfigError(f"model: expected one of {list(MODEL_NAMES)}, received {name!r}")
 
 
@@ -225,26 +230,38 @@ class BuavcMPC:
     def plan(self, robot: int, state: np.ndarray, goal: np.ndarray, A: np.ndarray, b: np.ndarray) -> tuple[np.ndarray | None, np.ndarray | None]:
         """Solve robot ``robot``'s problem from ``state`` toward ``goal`` in the cell ``(A, b)``
         (already padded to ``max_constraints``). Returns ``(u_0, predicted positions (N+1, d))``,
-        or ``(None, None)`` when the solver fails or its plan leaves the cell."""
+        or ``(None, None)`` when the inputs, simulated with the model's own step, leave the cell."""
         m, N = self.model, self.config.horizon
         p = np.concatenate([state, goal, A.T.ravel(), b - CELL_MARGIN])  # casadi reshape is column-major
         z0 = self._initial_guess(robot, state)
         with quiet_stdout() if self._first_solve else contextlib.nullcontext():  # and on first use
             sol = self._solver(x0=z0, p=p, lbx=self._lbz, ubx=self._ubz, lbg=self._lbg, ubg=self._ubg, lam_g0=self._lam_g[robot])
         self._first_solve = False
-        ok = self._solver.stats().get("success", False)
         z = np.asarray(sol["x"]).ravel()
-        X = z[: m.nx * (N + 1)].reshape(N + 1, m.nx)
         U = z[m.nx * (N + 1) :].reshape(N, m.nu)
-        positions = X[:, : m.dim]
-        inside = np.all(positions[1:] @ A.T <= b + _CELL_TOL)
-        if not (ok and inside and np.all(np.isfinite(z))):
-            self._warm[robot] = np.nan
-            self._lam_g[robot] = 0.0
-            return None, None
-        self._warm[robot] = z
-        self._lam_g[robot] = np.asarray(sol["lam_g"]).ravel()
-        return U[0], positions
+        positions = self.rollout(state, U)[:, : m.dim] if np.all(np.isfinite(z)) else None
+        if positions is not None and np.all(positions[1:] @ A.T <= b + _CELL_TOL):
+            self._warm[robot] = z
+            self._lam_g[robot] = np.asarray(sol["lam_g"]).ravel()
+            return U[0], positions
+        # the previous plan, shifted by one step, is still a valid plan if it stays in the new cell
+        shifted = z0[m.nx * (N + 1) :].reshape(N, m.nu)
+        positions = self.rollout(state, shifted)[:, : m.dim]
+        if np.all(np.isfinite(self._warm[robot])) and np.all(positions[1:] @ A.T <= b + _CELL_TOL):
+            self._warm[robot] = z0
+            return shifted[0], positions
+        self._warm[robot] = np.nan
+        self._lam_g[robot] = 0.0
+        return None, None
+
+    def rollout(self, state: np.ndarray, U: np.ndarray) -> np.ndarray:
+        """States ``(N+1, nx)`` of the simulator's own step under the planned inputs: the plan
+        is accepted only if these positions lie in the cell (a converged solve, or an
+        unconverged one whose inputs are nevertheless safe)."""
+        out = [np.asarray(state, dtype=float)[None]]
+        for u in U:
+            out.append(self.model.numeric_step(out[-1], u[None]))
+        return np.concatenate(out)
 
     def _initial_guess(self, robot: int, state: np.ndarray) -> np.ndarray:
         """The previous plan shifted by one step (first solve: hold the current state, zero input)."""
