@@ -112,12 +112,19 @@ def build_coordination_space(traj: Trajectories, window: int = 32, check_plan: b
     """
     boxes = _window_boxes(traj, window)
     reach = 2.0 * traj.radius
-    per_pair = []
+    cells, pair_of_cell, pairs = [], [], []
     for i, j in _candidate_pairs(traj, reach):
-        cells = _close_cells(traj, boxes, window, reach, i, j)
-        if len(cells):
-            per_pair.append(_components(i, j, cells, traj.lengths))
-    return _assemble(traj, per_pair, check_plan)
+        c = _close_cells(traj, boxes, window, reach, i, j)
+        if len(c):
+            cells.append(c)
+            pair_of_cell.append(np.full(len(c), len(pairs)))
+            pairs.append((i, j))
+    if not pairs:
+        return _empty_space(traj.lengths)
+    cells, pair_of_cell = np.concatenate(cells), np.concatenate(pair_of_cell)
+    comp, first_cell = _components(cells, pair_of_cell, int(traj.lengths.max()))
+    pairs = np.asarray(pairs)
+    return _assemble(traj, cells, comp, pairs[pair_of_cell[first_cell]], check_plan)
 
 
 def _window_boxes(traj: Trajectories, window: int) -> np.ndarray:
@@ -149,20 +156,26 @@ def _close_cells(traj: Trajectories, boxes: np.ndarray, window: int, reach: floa
     ki_c = np.minimum(ki, traj.positions.shape[1] - 1)
     kj_c = np.minimum(kj, traj.positions.shape[1] - 1)
     pi, pj = traj.positions[i, ki_c], traj.positions[j, kj_c]
-    d2 = ((pi[:, :, None, :] - pj[:, None, :, :]) ** 2).sum(axis=-1)
+    dx = pi[:, :, None, 0] - pj[:, None, :, 0]
+    dy = pi[:, :, None, 1] - pj[:, None, :, 1]
+    d2 = dx * dx + dy * dy
     hit = (d2 < reach * reach) & (ki[:, :, None] <= traj.lengths[i]) & (kj[:, None, :] <= traj.lengths[j])
     p, a, b = np.nonzero(hit)
     return np.column_stack([ki[p, a], kj[p, b]])
 
 
-def _components(i: int, j: int, cells: np.ndarray, lengths: np.ndarray) -> dict:
-    """4-connected components of the cells of one pair, via a sparse adjacency graph."""
-    width = int(lengths[j]) + 2
-    keys = cells[:, 0] * width + cells[:, 1]
+def _components(cells: np.ndarray, pair_of_cell: np.ndarray, k_max: int) -> tuple[np.ndarray, np.ndarray]:
+    """4-connected components of the cells of all pairs at once (one sparse graph).
+
+    Returns the component of every cell (numbered by pair, then by the lowest ``(k_i, k_j)``
+    cell) and the index of each component's first cell.
+    """
+    width = k_max + 2  # > K + 1: neighbours never wrap into another column or pair
+    keys = (pair_of_cell.astype(np.int64) * width + cells[:, 0]) * width + cells[:, 1]
     order = np.argsort(keys)
-    keys, cells = keys[order], cells[order]
+    keys = keys[order]
     src, dst = [], []
-    for step in (1, width):  # neighbour up (k_j + 1) and right (k_i + 1); width > K_j + 1 avoids wrap-around
+    for step in (1, width):  # neighbour up (k_j + 1) and right (k_i + 1)
         pos = np.searchsorted(keys, keys + step)
         ok = pos < len(keys)
         ok[ok] &= keys[pos[ok]] == keys[ok] + step
@@ -170,20 +183,21 @@ def _components(i: int, j: int, cells: np.ndarray, lengths: np.ndarray) -> dict:
         dst.append(pos[ok])
     src, dst = np.concatenate(src), np.concatenate(dst)
     adj = coo_matrix((np.ones(len(src), dtype=np.int8), (src, dst)), shape=(len(keys), len(keys)))
-    n_comp, comp = connected_components(adj, directed=False)
-    return {"i": i, "j": j, "cells": cells, "comp": comp, "n_comp": n_comp}
+    _, sorted_comp = connected_components(adj, directed=False)
+    first = np.full(sorted_comp.max() + 1, len(keys), dtype=np.intp)
+    np.minimum.at(first, sorted_comp, np.arange(len(keys)))
+    rank = np.argsort(first, kind="stable")  # number components by (pair, k_i, k_j) of their first cell
+    relabel = np.empty_like(rank)
+    relabel[rank] = np.arange(len(rank))
+    comp = np.empty(len(keys), dtype=np.intp)
+    comp[order] = relabel[sorted_comp]
+    return comp, order[first[rank]]
 
 
-def _assemble(traj: Trajectories, per_pair: list[dict], check_plan: bool) -> CoordinationSpace:
+def _assemble(traj: Trajectories, cells: np.ndarray, comp: np.ndarray, pair_of_comp: np.ndarray, check_plan: bool) -> CoordinationSpace:
     """Ranges, profiles and plan labels of every obstacle, vectorized over all cells."""
-    if not per_pair:
-        return _empty_space(traj.lengths)
-    base = np.cumsum([0] + [p["n_comp"] for p in per_pair])
-    comp = np.concatenate([p["comp"] + b for p, b in zip(per_pair, base[:-1])])
-    cells = np.concatenate([p["cells"] for p in per_pair])
-    m = int(base[-1])
-    robot_i = np.repeat([p["i"] for p in per_pair], [p["n_comp"] for p in per_pair])
-    robot_j = np.repeat([p["j"] for p in per_pair], [p["n_comp"] for p in per_pair])
+    m = len(pair_of_comp)
+    robot_i, robot_j = pair_of_comp[:, 0], pair_of_comp[:, 1]
     ki, kj = cells[:, 0], cells[:, 1]
     lo_i, hi_i = _group_min(comp, ki, m), _group_max(comp, ki, m)
     lo_j, hi_j = _group_min(comp, kj, m), _group_max(comp, kj, m)
