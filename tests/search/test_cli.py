@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from robofleet.cli.main import main
-from robofleet.search.reproduce import shipped_scenario
+from robofleet.scenarios import shipped_scenario
 
 
 def test_reproduce_search_writes_tables_and_plots(tmp_path, capsys):
@@ -17,7 +17,7 @@ def test_reproduce_search_writes_tables_and_plots(tmp_path, capsys):
 
 
 def test_search_check_reports_every_assumption(capsys):
-    main(["search-check", str(shipped_scenario("fig7.yaml"))])
+    main(["search-check", str(shipped_scenario("search", "fig7.yaml"))])
     text = capsys.readouterr().out
     for name in ("2.4", "2.5", "3.1.1", "3.1.2", "3.1.3"):
         assert f"holds  {name}" in text
@@ -28,7 +28,7 @@ def test_animation_and_route_plots(tmp_path):
     from robofleet import load_scenario, simulate
     from robofleet.viz.search import animate_trace, plot_routes
 
-    trace = simulate(load_scenario(shipped_scenario("failure_injection.yaml"), {"max_steps": 15}), seed=1)
+    trace = simulate(load_scenario(shipped_scenario("search", "failure_injection.yaml"), {"max_steps": 15}), seed=1)
     gif = animate_trace(trace, tmp_path / "run.gif", max_frames=8)
     png = plot_routes(trace, tmp_path / "routes.png", robots=[0, 2])
     assert gif.stat().st_size > 1000 and png.stat().st_size > 1000

@@ -9,7 +9,7 @@ import pytest
 
 from robofleet import load_scenario, simulate
 from robofleet.core.errors import ScenarioError
-from robofleet.search.reproduce import shipped_scenario
+from robofleet.scenarios import shipped_scenario
 
 from .helpers import small_spec
 
@@ -87,6 +87,6 @@ def test_trace_round_trip_and_shapes(tmp_path):
 
 
 def test_shipped_fig7_scenario_holds_every_assumption():
-    spec = load_scenario(shipped_scenario("fig7.yaml"))
+    spec = load_scenario(shipped_scenario("search", "fig7.yaml"))
     assert spec.assumption_report().complete_search
     assert len(spec.targets) == 9

@@ -31,13 +31,14 @@ def reproduce_search_command(
 ) -> None:
     """Reproduce Fig. 7 of paper 002 (four algorithms, 1–13 robots) and the grid coverage study."""
     from .. import load_scenario, simulate
-    from ..search.reproduce import reproduce_search, shipped_scenario
+    from ..scenarios import shipped_scenario
+    from ..search.reproduce import reproduce_search
     from ..viz import search as viz
 
     result = reproduce_search(out, runs, coverage_runs, executor=executor, scheduler=scheduler, workers=workers,
                               progress=not quiet)
     written = [viz.plot_fig7(result["fig7"], out / "fig7.png"), viz.plot_coverage_ranges(result["coverage"], out / "coverage.png")]
-    trace = simulate(load_scenario(shipped_scenario("fig7.yaml"), {"robots.count": 3}), seed=5)
+    trace = simulate(load_scenario(shipped_scenario("search", "fig7.yaml"), {"robots.count": 3}), seed=5)
     trace.save(out / "fig5_trace")
     written.append(viz.plot_routes(trace, out / "fig5_routes.png"))
     written.append(viz.plot_routes(trace, out / "fig6_route.png", robots=[0], title="Route of robot 0"))

@@ -20,13 +20,13 @@ and the executor (serial, process, dask) does not change the numbers.
 from __future__ import annotations
 
 from functools import lru_cache
-from importlib import resources
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
 from ..core.rng import spawn_seeds
+from ..scenarios import shipped_scenario
 
 FIG11_PATTERNS = ("wedge", "line", "spread", "random")
 COMPARED_ALGORITHMS = ("basic", "stripe", "hula_hoop", "randomized")
@@ -36,13 +36,6 @@ ROOT_SEED = 2001
 CURVE_STRIDE = 5
 
 
-def shipped_scenario(name: str) -> Path:
-    """Path of a scenario file shipped with robofleet (``scenarios/flocking/<name>``)."""
-    packaged = resources.files("robofleet") / "_scenarios" / "flocking" / name
-    if packaged.is_file():
-        return Path(str(packaged))
-    return Path(__file__).resolve().parents[3] / "scenarios" / "flocking" / name
-
 
 @lru_cache(maxsize=64)
 def _spec(pattern: str, algorithm: str, scheduler: str, duration: float):
@@ -50,7 +43,7 @@ def _spec(pattern: str, algorithm: str, scheduler: str, duration: float):
 
     overrides = {"pattern.kind": pattern, "algorithm.kind": algorithm, "scheduler.kind": scheduler, "duration": duration,
                  "name": f"{pattern}-{algorithm}-{scheduler}"}
-    return load_scenario(shipped_scenario("wedge_async.yaml"), overrides)
+    return load_scenario(shipped_scenario("flocking", "wedge_async.yaml"), overrides)
 
 
 def run_one(task: dict):

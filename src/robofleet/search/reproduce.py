@@ -19,13 +19,13 @@ from __future__ import annotations
 
 import time
 from functools import lru_cache
-from importlib import resources
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
 from ..core.rng import spawn_seeds
+from ..scenarios import shipped_scenario
 from .grids import GridKind
 from .scenario import build_problem, coverage_probe
 from .simulation import LABELS, Algorithm, run_search_batch
@@ -38,13 +38,6 @@ COVERAGE_RANGES = (0.6, 0.7, 0.8, 0.9, 1.0)
 ROOT_SEED = 2017
 Z95 = 1.959963984540054
 
-
-def shipped_scenario(name: str) -> Path:
-    """Path of a scenario file shipped with robofleet (``scenarios/search/<name>``)."""
-    packaged = resources.files("robofleet") / "_scenarios" / "search" / name
-    if packaged.is_file():
-        return Path(str(packaged))
-    return Path(__file__).resolve().parents[3] / "scenarios" / "search" / name
 
 
 @lru_cache(maxsize=64)
@@ -109,7 +102,7 @@ def batched(prefix: str, runs: int, batch: int, root_seed: int, **fields) -> lis
 def fig7_tasks(runs: int = 500, batch: int = 25, root_seed: int = ROOT_SEED, scenario: str | Path | None = None,
                robots=FIG7_ROBOTS, algorithms=FIG7_ALGORITHMS) -> list[dict]:
     """Tasks of the Fig. 7 sweep (``len(algorithms) · len(robots) · runs`` runs)."""
-    path = str(scenario or shipped_scenario("fig7.yaml"))
+    path = str(scenario or shipped_scenario("search", "fig7.yaml"))
     return [task for alg in algorithms for n in robots
             for task in batched(f"fig7-{Algorithm(alg).value}-n{n:02d}", runs, batch, root_seed,
                                 scenario=path, algorithm=Algorithm(alg).value, n_robots=n)]
@@ -118,7 +111,7 @@ def fig7_tasks(runs: int = 500, batch: int = 25, root_seed: int = ROOT_SEED, sce
 def coverage_tasks(runs: int = 50, batch: int = 25, root_seed: int = ROOT_SEED + 1, scenario: str | Path | None = None,
                    robots=(1, 3, 5)) -> list[dict]:
     """Tasks of the coverage study (three grids × ``robots`` × ``runs``)."""
-    path = str(scenario or shipped_scenario("fig7.yaml"))
+    path = str(scenario or shipped_scenario("search", "fig7.yaml"))
     return [task for kind in COVERAGE_GRIDS for n in robots
             for task in batched(f"coverage-{kind.value}-n{n:02d}", runs, batch, root_seed,
                                 scenario=path, grid_kind=kind.value, n_robots=n)]
