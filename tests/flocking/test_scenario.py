@@ -122,7 +122,6 @@ def test_random_turn_course_speed_and_turn_rate():
 
 def test_scripted_course_turns_as_scripted():
     spec = robofleet.load_scenario("scenarios/flocking/scripted_leader.yaml")
-    seg = spec.leader.segments
     course = build_course(spec.leader, speed=spec.leader.speed, turn_rate=0.004, start=[0, 0], heading=0.0, horizon=1000)
     assert course.heading(300.0) == pytest.approx(0.0)
     assert course.heading(450.0) == pytest.approx(150 * 0.004)

@@ -1,4 +1,4 @@
-"""Headless-safe animation writer shared by every family's viz module."""
+"""Headless-safe figure and animation writers shared by every family's viz module."""
 
 from __future__ import annotations
 
@@ -10,6 +10,17 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 from matplotlib.animation import FuncAnimation, PillowWriter  # noqa: E402
+
+
+def save_figure(fig: "plt.Figure", path: str | Path, dpi: int = 120, tight: bool = False) -> Path:
+    """Write ``fig`` to ``path`` (parent folders created), close it, return the path."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    if tight:
+        fig.tight_layout()
+    fig.savefig(path, dpi=dpi)
+    plt.close(fig)
+    return path
 
 
 def save_gif(fig: "plt.Figure", update: Callable[[int], object], frames, path: str | Path, fps: int = 10) -> Path:

@@ -13,7 +13,7 @@ from matplotlib.patches import Circle, Ellipse, Polygon as PolygonPatch  # noqa:
 from shapely.geometry import Polygon, box  # noqa: E402
 
 from ..core.trace import Trace  # noqa: E402
-from .animation import frame_indices, save_gif  # noqa: E402
+from .animation import frame_indices, save_figure, save_gif  # noqa: E402
 
 
 def draw_workspace(ax, trace: Trace) -> None:
@@ -130,9 +130,4 @@ def plot_reproduction(noise, delta, path: str | Path) -> Path:
     axes[3].loglog(d, d, "k--", label="bound δ")
     axes[3].set(xlabel="δ", ylabel="empirical collision probability", title="chance constraint")
     axes[3].legend(fontsize=7)
-    fig.tight_layout()
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
-    return path
+    return save_figure(fig, path, tight=True)

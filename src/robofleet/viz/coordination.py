@@ -18,7 +18,7 @@ from matplotlib.patches import Circle, Polygon as PolygonPatch  # noqa: E402
 
 from ..core.trace import Trace  # noqa: E402
 from ..core.workspace import Workspace  # noqa: E402
-from .animation import frame_indices, save_gif  # noqa: E402
+from .animation import frame_indices, save_figure, save_gif  # noqa: E402
 
 PANELS = (
     ("mean_travel_time", "(a) average travel time [s]"),
@@ -48,7 +48,7 @@ def plot_fig6(summary: pd.DataFrame, path: str | Path) -> Path:
     axes[1, 1].set_ylim(-0.05, 1.05)
     axes[0, 0].legend(fontsize=8)
     fig.tight_layout()
-    return _save(fig, path)
+    return save_figure(fig, path, dpi=110)
 
 
 def draw_workspace(ax, workspace: Workspace) -> None:
@@ -80,7 +80,7 @@ def plot_plan(trace: Trace, path: str | Path) -> Path:
     for p in pos:
         ax.add_patch(Circle(p, trace.metadata["radius"], color="tab:blue"))
     ax.set_title(f"{trace.metadata['n_robots']} robots, planned trajectories")
-    return _save(fig, path)
+    return save_figure(fig, path, dpi=110)
 
 
 def _draw_plan(ax, trace: Trace) -> None:
@@ -136,10 +136,3 @@ def _plan_lengths(plan: np.ndarray) -> np.ndarray:
     last = np.where(moved.any(axis=0), plan.shape[0] - 1 - np.argmax(moved[::-1], axis=0), -1)
     return last + 1
 
-
-def _save(fig, path) -> Path:
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path

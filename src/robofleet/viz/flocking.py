@@ -14,7 +14,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
-from .animation import frame_indices, save_gif  # noqa: E402
+from .animation import frame_indices, save_figure, save_gif  # noqa: E402
 
 
 def plot_delta_curves(curves: pd.DataFrame, path: str | Path) -> Path:
@@ -43,7 +43,7 @@ def plot_delta_curves(curves: pd.DataFrame, path: str | Path) -> Path:
                 ax.set_ylabel(label)
     axes[0, 0].legend(fontsize=7)
     fig.tight_layout()
-    return _save(fig, path)
+    return save_figure(fig, path, dpi=110)
 
 
 def plot_trace(trace, path: str | Path, title: str | None = None) -> Path:
@@ -60,7 +60,7 @@ def plot_trace(trace, path: str | Path, title: str | None = None) -> Path:
     r = trace.results
     ax.set_title(title or f"{trace.metadata.get('name', '')}: Δe={r['delta_e_final']:.2f}, Δr={r['delta_r_final']:.2f}, ξ={r['xi']:.2f}", fontsize=9)
     ax.legend(fontsize=7, loc="best")
-    return _save(fig, path)
+    return save_figure(fig, path, dpi=110)
 
 
 def plot_comparison(table: pd.DataFrame, path: str | Path) -> Path:
@@ -82,7 +82,7 @@ def plot_comparison(table: pd.DataFrame, path: str | Path) -> Path:
         ax.set_title(label, fontsize=9)
     axes[0].legend(fontsize=7)
     fig.tight_layout()
-    return _save(fig, path)
+    return save_figure(fig, path, dpi=110)
 
 
 def animate_trace(trace, path: str | Path, fps: int = 15, max_frames: int = 150, tail: int = 60) -> Path:
@@ -117,10 +117,3 @@ def animate_trace(trace, path: str | Path, fps: int = 15, max_frames: int = 150,
 def _leader_marker(ax, point, heading) -> None:
     ax.plot(point[0], point[1], marker=(3, 0, np.degrees(heading) - 90), markersize=11, color="k", ls="none")
 
-
-def _save(fig, path) -> Path:
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path

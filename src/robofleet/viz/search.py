@@ -17,7 +17,7 @@ import pandas as pd  # noqa: E402
 from matplotlib.patches import Polygon as PolygonPatch  # noqa: E402
 
 from ..core.trace import Trace  # noqa: E402
-from .animation import frame_indices, save_gif  # noqa: E402
+from .animation import frame_indices, save_figure, save_gif  # noqa: E402
 
 ALGORITHM_ORDER = ("lfp", "ru", "rule1", "proposed")
 MARKERS = {"lfp": "v", "ru": "s", "rule1": "^", "proposed": "o"}
@@ -39,7 +39,7 @@ def plot_fig7(summary: pd.DataFrame, path: str | Path) -> Path:
     ax.set_title("Search time, nine targets (mean ± 95 % CI)")
     ax.grid(alpha=0.3)
     ax.legend()
-    return _save(fig, path)
+    return save_figure(fig, path, dpi=130, tight=True)
 
 
 def plot_coverage_ranges(summary: pd.DataFrame, path: str | Path, columns: dict[str, float] | None = None) -> Path:
@@ -60,7 +60,7 @@ def plot_coverage_ranges(summary: pd.DataFrame, path: str | Path, columns: dict[
     ax.set_title("Coverage of the visited vertices (situation 2)")
     ax.grid(alpha=0.3)
     ax.legend()
-    return _save(fig, path)
+    return save_figure(fig, path, dpi=130, tight=True)
 
 
 def draw_area(ax, trace: Trace, show_grid: bool = True) -> None:
@@ -104,7 +104,7 @@ def plot_routes(trace: Trace, path: str | Path, robots: list[int] | None = None,
     ax.set_title(title or f"{trace.metadata.get('algorithm_label', '')}: {len(robots)} route(s), "
                           f"search time {res.get('search_time', float('nan')):.1f} s")
     ax.legend(loc="upper right", fontsize=7)
-    return _save(fig, path)
+    return save_figure(fig, path, dpi=130, tight=True)
 
 
 def animate_trace(trace: Trace, path: str | Path, fps: int = 6, max_frames: int = 150) -> Path:
@@ -145,11 +145,3 @@ def _visited_until(trace: Trace):
 
     return at
 
-
-def _save(fig, path: str | Path) -> Path:
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.tight_layout()
-    fig.savefig(path, dpi=130)
-    plt.close(fig)
-    return path
