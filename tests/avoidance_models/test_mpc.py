@@ -107,3 +107,15 @@ def test_bad_mpc_input_is_rejected():
         MPCConfig(horizon=0)
     with pytest.raises(ConfigError, match="model"):
         BuavcMPC("hovercraft", None, dim=2, dt=0.1, config=MPCConfig(), n_robots=1)
+
+
+def test_rollout_matches_the_simulator_step():
+    params = quad.QuadrotorParams()
+    mpc = BuavcMPC("quadrotor", params, dim=3, dt=0.05, config=MPCConfig(horizon=6), n_robots=1)
+    rng = np.random.default_rng(0)
+    U = rng.uniform(-0.3, 0.3, (6, 4))
+    x = np.array([0, 0, 1.0, 0.1, -0.2, 0, 0.02, 0.01, 0.5])
+    states = [x[None]]
+    for u in U:
+        states.append(quad.step(states[-1], u[None], 0.05, params))
+    np.testing.assert_allclose(mpc.rollout(x, U), np.concatenate(states), atol=1e-12)

@@ -15,7 +15,8 @@ always-true ``0·p ≤ 1``. Linear models (single and double integrator) are sol
 (qpOASES through casadi's ``qpsol``), nonlinear ones (unicycle, quadrotor) as an NLP with
 IPOPT (``nlpsol``), warm-started from the previous plan shifted by one step.
 
-The returned inputs are rolled out with the simulator's own step; when that rollout
+The returned inputs are rolled out with the model's discrete step (the simulator's
+equations); when that rollout
 leaves the cell (e.g. IPOPT stopped at its iteration cap), the previous plan shifted by
 one step is used if its rollout stays in the new cell; otherwise the robot applies its model's safe
 fallback (zero input; for the double integrator the brake of :mod:`.braking`; for the
@@ -97,7 +98,6 @@ class ModelAdapter:
     u_hi: np.ndarray
     norm_limits: tuple  # ((kind "u"|"x", slice, limit), ...)
     fallback: Callable  # (states (n, nx)) -> controls (n, nu)
-    numeric_step: Callable  # (states (n, nx), controls (n, nu)) -> states, the simulator's step
 
 
 def model_adapter(name: str, params, dim: int, dt: float) -> ModelAdapter:
@@ -105,19 +105,17 @@ def model_adapter(name: str, params, dim: int, dt: float) -> ModelAdapter:
     inf = np.inf
     if name == "single_integrator":
         return ModelAdapter(name, dim, dim, dim, True, lambda x, u: x + u * dt, np.full(dim, -inf), np.full(dim, inf),
-                            (("u", slice(0, dim), params.v_max),), lambda s: np.zeros((len(s), dim)), lambda x, u: x + u * dt)
+                            (("u", slice(0, dim), params.v_max),), lambda s: np.zeros((len(s), dim)))
     if name == "double_integrator":
         return ModelAdapter(name, 2 * dim, dim, dim, True, lambda x, u: di.symbolic_step(x, u, dt, params, dim), np.full(dim, -inf), np.full(dim, inf),
                             (("u", slice(0, dim), params.a_max), ("x", slice(dim, 2 * dim), params.v_max)),
-                            lambda s: braking_control(s[:, dim:], params.a_max, dt), lambda x, u: di.step(x, u, dt, params))
+                            lambda s: braking_control(s[:, dim:], params.a_max, dt))
     if name == "unicycle":
         hi = np.array([params.v_max, params.omega_max])
-        return ModelAdapter(name, 3, 2, 2, False, lambda x, u: uni.symbolic_step(x, u, dt, params), -hi, hi, (), lambda s: np.zeros((len(s), 2)),
-                            lambda x, u: uni.step(x, u, dt, params))
+        return ModelAdapter(name, 3, 2, 2, False, lambda x, u: uni.symbolic_step(x, u, dt, params), -hi, hi, (), lambda s: np.zeros((len(s), 2)))
     if name == "quadrotor":
         lo, hi = params.control_bounds()
-        return ModelAdapter(name, 9, 4, 3, False, lambda x, u: quad.symbolic_step(x, u, dt, params), lo, hi, (), lambda s: quad.braking_control(s, params),
-                            lambda x, u: quad.step(x, u, dt, params))
+        return ModelAdapter(name, 9, 4, 3, False, lambda x, u: quad.symbolic_step(x, u, dt, params), lo, hi, (), lambda s: quad.braking_control(s, params))
     raise ConfigError(f"model: expected one of {list(MODEL_NAMES)}, received {name!r}")
 
 
@@ -199,6 +197,11 @@ class BuavcMPC:
         self._lbz = np.concatenate([np.full(m.nx * (N + 1), -np.inf), np.tile(m.u_lo, N)])
         self._ubz = np.concatenate([np.full(m.nx * (N + 1), np.inf), np.tile(m.u_hi, N)])
         problem = {"x": z, "p": P, "f": cost, "g": g}
+        xs, us = ca.SX.sym("xs", m.nx), ca.SX.sym("us", m.nu, N)
+        states = [xs]
+        for k in range(N):
+            states.append(m.step(states[-1], us[:, k]))
+        self._rollout = ca.Function("rollout", [xs, us], [ca.horzcat(*states)])
         self._first_solve = True
         if m.linear:
             with quiet_stdout():  # qpOASES prints its licence banner on construction
@@ -255,13 +258,11 @@ class BuavcMPC:
         return None, None
 
     def rollout(self, state: np.ndarray, U: np.ndarray) -> np.ndarray:
-        """States ``(N+1, nx)`` of the simulator's own step under the planned inputs: the plan
-        is accepted only if these positions lie in the cell (a converged solve, or an
-        unconverged one whose inputs are nevertheless safe)."""
-        out = [np.asarray(state, dtype=float)[None]]
-        for u in U:
-            out.append(self.model.numeric_step(out[-1], u[None]))
-        return np.concatenate(out)
+        """States ``(N+1, nx)`` reached from ``state`` under the inputs ``U (N, nu)`` with the
+        model's discrete step (the simulator's equations, compiled once): a plan is accepted
+        only if these positions lie in the cell (a converged solve, or an unconverged one
+        whose inputs are nevertheless safe)."""
+        return np.asarray(self._rollout(state, U.T)).T
 
     def _initial_guess(self, robot: int, state: np.ndarray) -> np.ndarray:
         """The previous plan shifted by one step (first solve: hold the current state, zero input)."""
