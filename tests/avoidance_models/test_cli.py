@@ -1,6 +1,5 @@
 """``robofleet reproduce buavc-models`` registration and argument checks."""
 
-import pytest
 import typer
 from typer.testing import CliRunner
 

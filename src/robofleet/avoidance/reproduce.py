@@ -14,7 +14,6 @@ and per run.
 
 from __future__ import annotations
 
-from importlib import resources
 from pathlib import Path
 
 import numpy as np
@@ -22,20 +21,14 @@ import pandas as pd
 
 from ..core import metrics
 from ..core.rng import spawn_seeds
-from ..scenarios import load_scenario, simulate
+from ..experiments.report import markdown_table
+from ..scenarios import load_scenario, shipped_scenario, simulate
 
-SCENARIO = "avoidance/three_boxes.yaml"
+SCENARIO = "three_boxes.yaml"
 SIGMAS = (0.05, 0.1, 0.15, 0.2)
 DELTAS = (0.01, 0.05, 0.1, 0.2)
 METHODS = ("buavc", "bvc", "bvc_inflated")
 
-
-def scenario_path(name: str) -> Path:
-    """A shipped scenario file (``scenarios/<family>/<file>``), from a checkout or the wheel."""
-    local = Path(__file__).resolve().parents[3] / "scenarios" / name
-    if local.exists():
-        return local
-    return Path(str(resources.files("robofleet") / "_scenarios" / name))
 
 
 def plan(seeds: int, root_seed: int = 0, sigmas=SIGMAS, deltas=DELTAS) -> list[dict]:
@@ -56,7 +49,7 @@ def plan(seeds: int, root_seed: int = 0, sigmas=SIGMAS, deltas=DELTAS) -> list[d
 def run_one(task: dict) -> dict:
     """Simulate one task and return its row (module-level so worker processes can import it)."""
     overrides = {"method": task["method"], "delta": task["delta"], "robots.sigma": task["sigma"], "workspace.obstacle_sigma": task["sigma"]}
-    spec = load_scenario(scenario_path(SCENARIO), overrides=overrides)
+    spec = load_scenario(shipped_scenario("avoidance", SCENARIO), overrides=overrides)
     trace = simulate(spec, seed=task["seed"])
     row = {k: v for k, v in trace.summary().items() if np.isscalar(v)}
     row.update(collision_probabilities(trace))
@@ -117,33 +110,21 @@ def tables(frame: pd.DataFrame) -> tuple[pd.DataFrame, pd.DataFrame]:
     return noise, delta
 
 
+TABLE_FORMATS = {
+    "runs": "d", "success": ".0%", "run_collided": ".0%", "pair_rate": ".0%", "pair_step_pooled": ".2e",
+    "pair_step_upper": ".2e", "obstacle_step_rate": ".2e", "mean_travel_time": ".1f", "deadlock_detections": ".1f",
+}
+TABLE_COLUMNS = ["runs", "success", "run_collided", "pair_rate", "pair_step_pooled", "pair_step_upper",
+                 "obstacle_step_rate", "mean_travel_time", "deadlock_detections"]
+
+
 def markdown(noise: pd.DataFrame, delta: pd.DataFrame) -> str:
     """The two tables as markdown (percentages for rates)."""
-    def fmt(df, keys):
-        cols = keys + ["runs", "success", "run_collided", "pair_rate", "pair_step_pooled", "pair_step_upper", "obstacle_step_rate", "mean_travel_time", "deadlock_detections"]
-        head = "| " + " | ".join(["method" if c == "method" else c.replace("_", " ") for c in cols]) + " |"
-        lines = [head, "|" + "---|" * len(cols)]
-        for _, row in df.iterrows():
-            cells = []
-            for c in cols:
-                v = row[c]
-                if c in ("success", "run_collided", "pair_rate"):
-                    cells.append(f"{100 * v:.0f} %")
-                elif c in ("pair_step_pooled", "pair_step_upper", "obstacle_step_rate"):
-                    cells.append(f"{v:.2e}")
-                elif c in ("mean_travel_time", "deadlock_detections"):
-                    cells.append(f"{v:.1f}")
-                elif c == "runs":
-                    cells.append(str(int(v)))
-                else:
-                    cells.append(str(v))
-            lines.append("| " + " | ".join(cells) + " |")
-        return "\n".join(lines)
-
     return (
-        "Noise sweep (three boxes, 5 robots, δ = 0.1, Σ = Σ_o = σ² I):\n\n" + fmt(noise, ["method", "sigma"])
+        "Noise sweep (three boxes, 5 robots, δ = 0.1, Σ = Σ_o = σ² I):\n\n"
+        + markdown_table(noise, ["method", "sigma"] + TABLE_COLUMNS, TABLE_FORMATS)
         + "\n\nThreshold sweep (B-UAVC, σ = 0.1): pooled per-pair-per-step collision rate and its 95 % upper bound against δ.\n\n"
-        + fmt(delta, ["delta"]) + "\n"
+        + markdown_table(delta, ["delta"] + TABLE_COLUMNS, TABLE_FORMATS) + "\n"
     )
 
 

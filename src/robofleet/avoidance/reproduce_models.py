@@ -26,9 +26,9 @@ import pandas as pd
 
 from ..core import metrics
 from ..core.rng import spawn_seeds
-from ..scenarios import load_scenario, simulate
+from ..experiments.report import markdown_table
+from ..scenarios import load_scenario, shipped_scenario, simulate
 from .models_simulation import box_distance
-from .reproduce import scenario_path
 
 MODELS = {
     # name: (scenario, methods, sigmas, seed share, noise overrides)
@@ -39,6 +39,12 @@ MODELS = {
     "heterogeneous": ("avoidance_models/heterogeneous.yaml", ("buavc", "bvc", "bvc_inflated"), (0.04,), 0.4),
 }
 DELTAS = (0.01, 0.05, 0.1, 0.2)
+
+
+def model_scenario(model: str) -> Path:
+    """The shipped scenario file of ``model`` (``MODELS[model][0]`` is ``family/file``)."""
+    family, name = MODELS[model][0].split("/")
+    return shipped_scenario(family, name)
 DELTA_MODELS = ("double_integrator", "diff_drive")
 
 
@@ -75,7 +81,7 @@ def overrides(task: dict, spec_mapping_teams: int) -> dict:
 
 def run_one(task: dict) -> dict:
     """Simulate one task and return its row (module level: worker processes import it)."""
-    path = scenario_path(MODELS[task["model"]][0])
+    path = model_scenario(task["model"])
     teams = len(load_scenario(path).teams or [])
     spec = load_scenario(path, overrides=_teams_overrides(path, overrides(task, teams)))
     trace = simulate(spec, seed=task["seed"])
@@ -145,31 +151,21 @@ def tables(frame: pd.DataFrame) -> tuple[pd.DataFrame, pd.DataFrame]:
     return noise.reset_index(drop=True), delta
 
 
+MODEL_TABLE_FORMATS = {
+    "runs": "d", "success": ".0%", "run_collided": ".0%", "pair_step_rate": ".1e", "obstacle_step_rate": ".1e",
+    "mean_travel_time": ".1f", "deadlock_detections": ".1f", "unfinished": ".1f",
+}
+MODEL_TABLE_COLUMNS = ["runs", "success", "run_collided", "pair_step_rate", "obstacle_step_rate", "mean_travel_time",
+                       "deadlock_detections", "unfinished"]
+
+
 def markdown(noise: pd.DataFrame, delta: pd.DataFrame) -> str:
     """Both tables as markdown."""
-    def fmt(df, keys):
-        cols = keys + ["runs", "success", "run_collided", "pair_step_rate", "obstacle_step_rate", "mean_travel_time", "deadlock_detections", "unfinished"]
-        lines = ["| " + " | ".join(c.replace("_", " ") for c in cols) + " |", "|" + "---|" * len(cols)]
-        for _, row in df.iterrows():
-            cells = []
-            for c in cols:
-                v = row[c]
-                if c in ("success", "run_collided"):
-                    cells.append(f"{100 * v:.0f} %")
-                elif c in ("pair_step_rate", "obstacle_step_rate"):
-                    cells.append(f"{v:.1e}")
-                elif c in ("mean_travel_time", "deadlock_detections", "unfinished"):
-                    cells.append("–" if pd.isna(v) else f"{v:.1f}")
-                elif c == "runs":
-                    cells.append(str(int(v)))
-                else:
-                    cells.append(str(v))
-            lines.append("| " + " | ".join(cells) + " |")
-        return "\n".join(lines)
-
     return ("Noise sweep (δ = 0.1; rates are means over runs; travel time in s over arrived robots; "
-            "unfinished = robots not at their goal at the step limit):\n\n" + fmt(noise, ["model", "method", "sigma"])
-            + "\n\nThreshold sweep (B-UAVC): per-step pair collision rate against δ.\n\n" + fmt(delta, ["model", "delta"]) + "\n")
+            "unfinished = robots not at their goal at the step limit):\n\n"
+            + markdown_table(noise, ["model", "method", "sigma"] + MODEL_TABLE_COLUMNS, MODEL_TABLE_FORMATS)
+            + "\n\nThreshold sweep (B-UAVC): per-step pair collision rate against δ.\n\n"
+            + markdown_table(delta, ["model", "delta"] + MODEL_TABLE_COLUMNS, MODEL_TABLE_FORMATS) + "\n")
 
 
 def reproduce(out: str | Path = "results/buavc-models", seeds: int = 10, executor: str = "process", scheduler: str | None = None,
@@ -186,6 +182,6 @@ def reproduce(out: str | Path = "results/buavc-models", seeds: int = 10, executo
     gifs = []
     if animate:
         for name, model in (("diff_drive.gif", "diff_drive"), ("quadrotors_3d.gif", "quadrotor")):
-            trace = simulate(load_scenario(scenario_path(MODELS[model][0])), seed=1)
+            trace = simulate(load_scenario(model_scenario(model)), seed=1)
             gifs.append(animate_run(trace, out / name))
     return {"frame": frame, "noise": noise, "delta": delta, "table": out / "table.md", "figures": figures, "gifs": gifs}

@@ -22,7 +22,6 @@ from __future__ import annotations
 from typing import Literal, Optional, Union
 
 import numpy as np
-import shapely
 from pydantic import Field, field_validator, model_validator
 from shapely.geometry import Polygon
 

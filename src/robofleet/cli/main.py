@@ -17,7 +17,7 @@ app = typer.Typer(add_completion=False, no_args_is_help=True, help="Decentralize
 reproduce = typer.Typer(no_args_is_help=True, help="Reproduce a paper's experiment (sweep + plots + markdown table).")
 app.add_typer(reproduce, name="reproduce")
 
-FAMILY_CLIS = ("common", "avoidance", "coordination", "flocking", "search")
+FAMILY_CLIS = ("common", "avoidance", "avoidance_models", "coordination", "flocking", "search")
 
 
 def _register_family_commands() -> None:

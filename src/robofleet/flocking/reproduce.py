@@ -26,6 +26,7 @@ import numpy as np
 import pandas as pd
 
 from ..core.rng import spawn_seeds
+from ..experiments.report import markdown_table
 from ..scenarios import shipped_scenario
 
 FIG11_PATTERNS = ("wedge", "line", "spread", "random")
@@ -133,17 +134,7 @@ def comparison_table(df: pd.DataFrame) -> pd.DataFrame:
 
 def markdown(df: pd.DataFrame) -> str:
     """A markdown table (numbers to 3 significant digits)."""
-    cols = list(df.columns)
-    lines = ["| " + " | ".join(cols) + " |", "|" + "---|" * len(cols)]
-    for _, row in df.iterrows():
-        lines.append("| " + " | ".join(_fmt(row[c]) for c in cols) + " |")
-    return "\n".join(lines)
-
-
-def _fmt(v) -> str:
-    if isinstance(v, (float, np.floating)):
-        return "–" if not np.isfinite(v) else f"{v:.3g}"
-    return str(v)
+    return markdown_table(df)
 
 
 def reproduce_flocking(out: str | Path, seeds: int = 10, *, duration: float = 1500.0, compare_seeds: int | None = None,
