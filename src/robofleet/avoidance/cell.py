@@ -200,9 +200,9 @@ def cell_from_view(
     if len(nb):
         a, b = separator_flat(np.repeat(p[None], len(nb), 0), np.repeat(ego_cov[None], len(nb), 0), nb, ncov)
         rows_a.append(a), rows_b.append(b - buffer(a, ego_cov, ego_radius, quantile)), kinds.append(np.full(len(a), Kind.ROBOT))
-    one = dict(estimates=p[None], covs=np.asarray(ego_cov, float)[None], radius=np.array([ego_radius]), quantile=quantile, local_box=local_box)
-    for rows in (_obstacle_rows(one["estimates"], one["covs"], one["radius"], quantile, geometry.obstacles, local_box),
-                 _wall_rows(one["estimates"], one["covs"], one["radius"], quantile, geometry, local_box)):
+    ego, ego_covs, ego_radii = p[None], np.asarray(ego_cov, float)[None], np.array([ego_radius])
+    for rows in (_obstacle_rows(ego, ego_covs, ego_radii, quantile, geometry.obstacles, local_box),
+                 _wall_rows(ego, ego_covs, ego_radii, quantile, geometry, local_box)):
         if rows is not None and len(rows[0]):
             rows_a.append(rows[1]), rows_b.append(rows[2]), kinds.append(np.full(len(rows[0]), rows[3]))
     if not rows_a:
