@@ -3,9 +3,11 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Annotated, Optional
+from typing import Annotated
 
 import typer
+
+from .common import ExecutorOption, SchedulerOption, WorkersOption
 
 
 def register(app: typer.Typer, reproduce: typer.Typer) -> None:
@@ -15,9 +17,9 @@ def register(app: typer.Typer, reproduce: typer.Typer) -> None:
 def reproduce_buavc(
     out: Annotated[Path, typer.Option(help="Output directory.")] = Path("results/buavc"),
     seeds: Annotated[int, typer.Option(min=1, help="Seeds per method and noise level.")] = 20,
-    executor: Annotated[str, typer.Option(help="serial, process or dask.")] = "process",
-    scheduler: Annotated[Optional[str], typer.Option(help="Dask scheduler address (default: a LocalCluster).")] = None,
-    workers: Annotated[Optional[int], typer.Option(min=1, help="Local worker processes.")] = None,
+    executor: ExecutorOption = "process",
+    scheduler: SchedulerOption = None,
+    workers: WorkersOption = None,
 ) -> None:
     """Monte Carlo of B-UAVC vs BVC vs inflated BVC over seeds, noise levels and δ."""
     from ..avoidance.reproduce import reproduce

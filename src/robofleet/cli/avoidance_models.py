@@ -3,9 +3,11 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Annotated, Optional
+from typing import Annotated
 
 import typer
+
+from .common import ExecutorOption, SchedulerOption, WorkersOption
 
 
 def register(app: typer.Typer, reproduce: typer.Typer) -> None:
@@ -16,9 +18,9 @@ def reproduce_buavc_models(
     out: Annotated[Path, typer.Option(help="Output directory.")] = Path("results/buavc-models"),
     seeds: Annotated[int, typer.Option(min=1, help="Seeds per model, method and noise level (quadrotor and mixed teams use a fifth).")] = 10,
     models: Annotated[str, typer.Option(help="Comma-separated subset of: single_integrator, double_integrator, diff_drive, quadrotor, heterogeneous.")] = "",
-    executor: Annotated[str, typer.Option(help="serial, process or dask.")] = "process",
-    scheduler: Annotated[Optional[str], typer.Option(help="Dask scheduler address (default: a LocalCluster).")] = None,
-    workers: Annotated[Optional[int], typer.Option(min=1, help="Local worker processes.")] = None,
+    executor: ExecutorOption = "process",
+    scheduler: SchedulerOption = None,
+    workers: WorkersOption = None,
     animate: Annotated[bool, typer.Option(help="Write the diff-drive and quadrotor GIFs.")] = True,
 ) -> None:
     """Monte Carlo per robot model: B-UAVC vs BVC vs inflated BVC (vs ORCA for single integrators) over seeds, σ and δ."""

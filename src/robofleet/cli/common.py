@@ -17,6 +17,22 @@ from rich.table import Table
 
 from ..core.errors import RobofleetError
 
+# the options every sweep-running command shares (``sweep`` and each ``reproduce``)
+ExecutorOption = Annotated[str, typer.Option(help="Where the runs execute: serial, process (local worker processes) or dask.")]
+SchedulerOption = Annotated[Optional[str], typer.Option(help="Dask scheduler address, e.g. tcp://host:8786 (default: a local cluster).")]
+WorkersOption = Annotated[Optional[int], typer.Option(min=1, help="Local worker processes (default: available CPUs).")]
+
+
+def load_family(scenario: Path, family: str):
+    """Load ``scenario`` and insist it belongs to ``family`` (one-line error otherwise)."""
+    from .. import load_scenario
+    from ..core.errors import ScenarioError
+
+    spec = load_scenario(scenario)
+    if spec.family != family:
+        raise ScenarioError("family", family, spec.family, source=str(scenario))
+    return spec
+
 MIN_TABLE_COLUMNS = 3  # value columns shown however narrow the terminal
 COLUMN_WIDTH = 11  # characters a numeric column needs to stay readable
 PREFERRED_COLUMNS = ("success", "collisions", "min_pair_distance", "makespan", "mean_travel_time")
@@ -81,9 +97,9 @@ def validate_command(scenario: Annotated[Path, typer.Argument(help="Scenario YAM
 
 def sweep_command(
     sweep: Annotated[Path, typer.Argument(help="Sweep YAML file (scenario × grid × seeds).")],
-    executor: Annotated[str, typer.Option(help="Where the runs execute: serial, process (local worker processes) or dask.")] = "process",
-    scheduler: Annotated[Optional[str], typer.Option(help="Dask scheduler address, e.g. tcp://host:8786 (default: a local cluster).")] = None,
-    workers: Annotated[Optional[int], typer.Option(min=1, help="Local worker processes (default: available CPUs).")] = None,
+    executor: ExecutorOption = "process",
+    scheduler: SchedulerOption = None,
+    workers: WorkersOption = None,
     out: Annotated[Optional[Path], typer.Option(help="Result store directory (default: the sweep's out, else results/<sweep>).")] = None,
 ) -> None:
     """Run a sweep, resuming from its result store; print the means per parameter combination."""

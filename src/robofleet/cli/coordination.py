@@ -3,9 +3,11 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Annotated, Optional
+from typing import Annotated
 
 import typer
+
+from .common import ExecutorOption, SchedulerOption, WorkersOption, load_family
 
 from ..core.errors import ConfigError
 
@@ -21,12 +23,9 @@ def register(app: typer.Typer, reproduce: typer.Typer) -> None:
 def check_command(scenario: Annotated[Path, typer.Argument(help="Coordination scenario YAML file.")]) -> None:
     """Report whether a scenario's trajectories are non-conflicting (Definition 4) and whether
     their collision segments are disjoint (Theorem 4: then no flip can deadlock)."""
-    from .. import load_scenario
     from ..coordination.scenario import check
 
-    spec = load_scenario(scenario)
-    if spec.family != "coordination":
-        raise ConfigError(f"{scenario}: family: expected coordination, received {spec.family!r}")
+    spec = load_family(scenario, "coordination")
     traj, space, report = check(spec)
     typer.echo(f"{scenario}: {traj.n_robots} robots, {space.n_obstacles} coordination-space obstacles, "
                f"longest trajectory {int(traj.lengths.max())} steps")
@@ -49,9 +48,9 @@ def reproduce_rmtrack(
     instances: Annotated[int, typer.Option(min=1, help="Random instances per robot count.")] = 10,
     robots: Annotated[str, typer.Option(help="Comma-separated robot counts.")] = "5,10,15,20",
     out: Annotated[Path, typer.Option(help="Output directory.")] = Path("results/rmtrack"),
-    executor: Annotated[str, typer.Option(help="serial, process (local worker processes) or dask.")] = "process",
-    scheduler: Annotated[Optional[str], typer.Option(help="Dask scheduler address, e.g. tcp://host:8786.")] = None,
-    workers: Annotated[Optional[int], typer.Option(min=1, help="Local worker processes (default: available CPUs).")] = None,
+    executor: ExecutorOption = "process",
+    scheduler: SchedulerOption = None,
+    workers: WorkersOption = None,
     seed: Annotated[int, typer.Option(min=0, help="Root seed of the instances and disturbances.")] = 0,
     base_probability: Annotated[float, typer.Option(min=0.0, max=0.999, help="Disturbance probability outside the region.")] = 0.05,
     animate: Annotated[bool, typer.Option("--animate/--no-animate", help="Also animate one run with the largest robot count.")] = True,

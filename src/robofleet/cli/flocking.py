@@ -14,6 +14,8 @@ from typing import Annotated, Optional
 
 import typer
 
+from .common import ExecutorOption, SchedulerOption, WorkersOption, load_family
+
 
 def register(app: typer.Typer, reproduce: typer.Typer) -> None:
     """Add ``reproduce flocking`` and ``flocking-check``."""
@@ -26,9 +28,9 @@ def reproduce_flocking_command(
     compare_seeds: Annotated[Optional[int], typer.Option(min=1, help="Seeds per comparison cell (default: --seeds).")] = None,
     duration: Annotated[float, typer.Option(min=10, help="Simulated time per run (leader moves).")] = 1500.0,
     out: Annotated[Path, typer.Option(help="Output directory.")] = Path("results/flocking"),
-    executor: Annotated[str, typer.Option(help="serial, process (local worker processes) or dask.")] = "process",
-    scheduler: Annotated[Optional[str], typer.Option(help="Dask scheduler address, e.g. tcp://host:8786.")] = None,
-    workers: Annotated[Optional[int], typer.Option(min=1, help="Local worker processes (default: available CPUs).")] = None,
+    executor: ExecutorOption = "process",
+    scheduler: SchedulerOption = None,
+    workers: WorkersOption = None,
     animate: Annotated[bool, typer.Option(help="Write the wedge and spread animations.")] = True,
     quiet: Annotated[bool, typer.Option("--quiet", help="No progress bars.")] = False,
 ) -> None:
@@ -54,15 +56,11 @@ def flocking_check_command(scenario: Annotated[Path, typer.Argument(help="Scenar
     """Report the pattern checks and conditions (1)-(3) of Sec. 3.2 for a scenario."""
     import numpy as np
 
-    from .. import load_scenario
-    from ..core.errors import ScenarioError
     from ..core.rng import keyed_generator
     from ..flocking.leader import check_conditions, resolve_speeds
     from ..flocking.patterns import make_pattern
 
-    spec = load_scenario(scenario)
-    if spec.family != "flocking":
-        raise ScenarioError("family", "flocking", spec.family, source=str(scenario))
+    spec = load_family(scenario, "flocking")
     p = spec.pattern
     pattern = make_pattern(p.kind, points=p.points, n_points=p.n_points, path=p.path, rng=keyed_generator(0, "pattern"), source=spec.source)
     typer.echo(f"pattern {pattern.name}: {pattern.size} slots, R_P = {pattern.radius:.4g}, lb-symmetric: {pattern.is_lb_symmetric}, "

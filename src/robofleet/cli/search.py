@@ -9,9 +9,11 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Annotated, Optional
+from typing import Annotated
 
 import typer
+
+from .common import ExecutorOption, SchedulerOption, WorkersOption, load_family
 
 
 def register(app: typer.Typer, reproduce: typer.Typer) -> None:
@@ -24,9 +26,9 @@ def reproduce_search_command(
     runs: Annotated[int, typer.Option(min=2, help="Runs per point of Fig. 7 (the paper: 500).")] = 500,
     coverage_runs: Annotated[int, typer.Option(min=2, help="Runs per grid and robot count of the coverage study.")] = 50,
     out: Annotated[Path, typer.Option(help="Output directory.")] = Path("results/search"),
-    executor: Annotated[str, typer.Option(help="serial, process (local worker processes) or dask.")] = "process",
-    scheduler: Annotated[Optional[str], typer.Option(help="Dask scheduler address, e.g. tcp://host:8786.")] = None,
-    workers: Annotated[Optional[int], typer.Option(min=1, help="Local worker processes (default: available CPUs).")] = None,
+    executor: ExecutorOption = "process",
+    scheduler: SchedulerOption = None,
+    workers: WorkersOption = None,
     quiet: Annotated[bool, typer.Option("--quiet", help="No progress bars.")] = False,
 ) -> None:
     """Reproduce Fig. 7 of paper 002 (four algorithms, 1–13 robots) and the grid coverage study."""
@@ -48,12 +50,8 @@ def reproduce_search_command(
 
 def search_check_command(scenario: Annotated[Path, typer.Argument(help="Scenario YAML file of family search.")]) -> None:
     """Report which of Assumptions 2.4, 2.5, 3.1.1–3.1.3 hold and what Theorem 4.1 then guarantees."""
-    from .. import load_scenario
-    from ..core.errors import ScenarioError
 
-    spec = load_scenario(scenario)
-    if spec.family != "search":
-        raise ScenarioError("family", "search", spec.family, source=str(scenario))
+    spec = load_family(scenario, "search")
     report = spec.assumption_report()
     for c in report.checks:
         typer.echo(f"{'holds ' if c.holds else 'FAILS '} {c.name:<6} {c.statement}: {c.value:.4g} vs {c.required:.4g}")
