@@ -92,3 +92,37 @@ def test_crowd_stays_collision_free_without_noise():
         worst = min(worst, d.min())
     assert worst >= 2 * radius - 1e-6
     assert np.linalg.norm(pos - goals, axis=1).max() < 0.1
+
+
+def test_least_violation_fallback_is_the_exact_minimax():
+    """Sec. 5.2 fallback: the enumerated optimum lies between the LP optima over the
+    circumscribed (a relaxation) and inscribed (a restriction) 360-gons of the speed disc."""
+    import numpy as np
+    from scipy.optimize import linprog
+
+    from robofleet.avoidance.orca import least_violation_velocities
+
+    rng = np.random.default_rng(21)
+    m, k, sides = 60, 7, 360
+    n = rng.normal(size=(m, k, 2))
+    n /= np.linalg.norm(n, axis=-1, keepdims=True)
+    q = rng.normal(size=(m, k, 2)) * 2
+    valid = rng.random((m, k)) < 0.8
+    valid[:, 0] = True
+    vmax = rng.uniform(0.5, 2.0, m)
+    v = least_violation_velocities(q, n, valid, vmax)
+    ang = 2 * np.pi * np.arange(sides) / sides
+    edges = np.stack([np.cos(ang), np.sin(ang)], -1)
+
+    def polygon_lp(nk, qk, apothem):
+        A = np.vstack([np.column_stack([-nk, -np.ones(len(nk))]), np.column_stack([edges, np.zeros(sides)])])
+        b = np.concatenate([-np.einsum("kd,kd->k", nk, qk), np.full(sides, apothem)])
+        return linprog([0, 0, 1], A_ub=A, b_ub=b, bounds=[(None, None)] * 3, method="highs").x[2]
+
+    for i in range(m):
+        nk, qk = n[i][valid[i]], q[i][valid[i]]
+        ours = np.max(np.einsum("kd,kd->k", nk, qk - v[i]))
+        assert np.linalg.norm(v[i]) <= vmax[i] * (1 + 1e-9)
+        relaxed = polygon_lp(nk, qk, vmax[i])  # circumscribed: apothem = radius
+        restricted = polygon_lp(nk, qk, vmax[i] * np.cos(np.pi / sides))  # inscribed
+        assert relaxed - 1e-9 <= ours <= restricted + 1e-9

@@ -18,14 +18,15 @@ The baseline of paper 003 for holonomic robots, vectorized over agents:
    or the projection of ``v_pref`` onto one constraint line restricted to the feasible
    interval cut by the disc and the other half-planes. When the program is infeasible
    (dense crowds), Sec. 5.2's fallback is used: the velocity minimising the largest
-   violation, solved per infeasible agent as a small LP over a polygonal speed disc.
+   violation, found exactly for all infeasible agents at once by enumerating the
+   candidates the optimality conditions allow (:func:`least_violation_velocities`).
 """
 
 from __future__ import annotations
 
+import numba
 import numpy as np
 from pydantic import Field
-from scipy.optimize import linprog
 from scipy.spatial import cKDTree
 
 from ..scenarios.base import SpecModel
@@ -130,19 +131,80 @@ def solve_velocity_lp(q: np.ndarray, n: np.ndarray, valid: np.ndarray, v_pref: n
     return np.where(c0_ok[:, None], c0, np.where(feasible[:, None], line_best, c0)), feasible
 
 
-def least_violation_velocity(q: np.ndarray, n: np.ndarray, v_max: float, sides: int = 32) -> np.ndarray:
-    """Sec. 5.2 fallback for one agent: ``argmin_v max_k −n_k·(v − q_k)`` over ``‖v‖ ≤ v_max``.
+def least_violation_velocities(q: np.ndarray, n: np.ndarray, valid: np.ndarray, v_max: np.ndarray) -> np.ndarray:
+    """Sec. 5.2 fallback, exact, for a batch of agents: ``argmin_v max_k g_k(v)`` over
+    ``‖v‖ ≤ v_max``, with the violations ``g_k(v) = n_k·(q_k − v)``.
 
-    Solved as an LP in ``(v, t)`` with the speed disc replaced by its inscribed regular
-    ``sides``-gon.
+    ``f = max_k g_k`` is convex and piecewise linear, so its minimiser over the disc is,
+    by the optimality conditions, one of: a point where three violations are equal
+    (interior, ``0 ∈ conv{∇g}``); ``v_max n_k`` (on the circle with one active
+    constraint); a point of the circle where two violations are equal. All candidates
+    are enumerated (O(K³) per agent, K ≤ ``max_neighbors``) and the best kept.
+    ``q, n (M, K, 2)``, ``valid (M, K)``, ``v_max (M,)``; returns ``(M, 2)``.
     """
-    angles = 2 * np.pi * np.arange(sides) / sides
-    edge_n = np.stack([np.cos(angles), np.sin(angles)], -1)
-    apothem = v_max * np.cos(np.pi / sides)
-    A_ub = np.vstack([np.column_stack([-n, -np.ones(len(n))]), np.column_stack([edge_n, np.zeros(sides)])])
-    b_ub = np.concatenate([-np.einsum("kd,kd->k", n, q), np.full(sides, apothem)])
-    res = linprog([0.0, 0.0, 1.0], A_ub=A_ub, b_ub=b_ub, bounds=[(None, None)] * 3, method="highs")
-    return res.x[:2] if res.success else np.zeros(2)
+    out = np.zeros((len(q), 2))
+    _least_violation(np.ascontiguousarray(q, dtype=np.float64), np.ascontiguousarray(n, dtype=np.float64),
+                     np.ascontiguousarray(valid), np.ascontiguousarray(v_max, dtype=np.float64), out)
+    return out
+
+
+@numba.njit(cache=True)
+def _worst_violation(v0, v1, q, n, valid, i):
+    worst = -np.inf
+    for k in range(q.shape[1]):
+        if valid[i, k]:
+            g = n[i, k, 0] * (q[i, k, 0] - v0) + n[i, k, 1] * (q[i, k, 1] - v1)
+            worst = max(worst, g)
+    return worst
+
+
+@numba.njit(cache=True)
+def _least_violation(q, n, valid, v_max, out):
+    tol = 1e-12
+    for i in range(q.shape[0]):
+        r = v_max[i]
+        rows = [k for k in range(q.shape[1]) if valid[i, k]]
+        c = [n[i, k, 0] * q[i, k, 0] + n[i, k, 1] * q[i, k, 1] for k in rows]
+        best, b0, b1 = np.inf, 0.0, 0.0
+        m = len(rows)
+        for a in range(m):  # one active constraint on the circle: v = r n_k
+            k = rows[a]
+            v0, v1 = r * n[i, k, 0], r * n[i, k, 1]
+            f = _worst_violation(v0, v1, q, n, valid, i)
+            if f < best:
+                best, b0, b1 = f, v0, v1
+        for a in range(m):
+            ka = rows[a]
+            for b in range(a + 1, m):
+                kb = rows[b]
+                # circle points with g_a = g_b: (n_b − n_a)·v = c_b − c_a
+                w0, w1 = n[i, kb, 0] - n[i, ka, 0], n[i, kb, 1] - n[i, ka, 1]
+                h = c[b] - c[a]
+                ww = w0 * w0 + w1 * w1
+                if ww > tol:
+                    foot0, foot1 = h * w0 / ww, h * w1 / ww
+                    rest = r * r - (foot0 * foot0 + foot1 * foot1)
+                    if rest >= 0.0:
+                        t = np.sqrt(rest / ww)
+                        for sgn in (-1.0, 1.0):
+                            v0, v1 = foot0 - sgn * t * w1, foot1 + sgn * t * w0
+                            f = _worst_violation(v0, v1, q, n, valid, i)
+                            if f < best:
+                                best, b0, b1 = f, v0, v1
+                for cc in range(b + 1, m):  # interior points with g_a = g_b = g_c
+                    kc = rows[cc]
+                    u0, u1 = n[i, kc, 0] - n[i, ka, 0], n[i, kc, 1] - n[i, ka, 1]
+                    det = w0 * u1 - w1 * u0
+                    if abs(det) <= tol:
+                        continue
+                    hc = c[cc] - c[a]
+                    v0 = (h * u1 - hc * w1) / det
+                    v1 = (w0 * hc - u0 * h) / det
+                    if v0 * v0 + v1 * v1 <= r * r * (1.0 + 1e-12):
+                        f = _worst_violation(v0, v1, q, n, valid, i)
+                        if f < best:
+                            best, b0, b1 = f, v0, v1
+        out[i, 0], out[i, 1] = b0, b1
 
 
 def orca_velocities(positions, velocities, v_pref, radius, v_max, params: OrcaParams, dt: float) -> tuple[np.ndarray, np.ndarray]:
@@ -169,8 +231,9 @@ def orca_velocities(positions, velocities, v_pref, radius, v_max, params: OrcaPa
     idx, valid = neighbours(pos, params)
     q, n = orca_halfplanes(pos[idx] - pos[:, None, :], vel[:, None, :] - vel[idx], vel[:, None, :], rad[:, None] + rad[idx], params.time_horizon, dt)
     new, feasible = solve_velocity_lp(q, n, valid, np.asarray(v_pref, dtype=float), vmax)
-    for i in np.flatnonzero(~feasible):
-        new[i] = least_violation_velocity(q[i][valid[i]], n[i][valid[i]], float(vmax[i]))
+    stuck = np.flatnonzero(~feasible)
+    if len(stuck):
+        new[stuck] = least_violation_velocities(q[stuck], n[stuck], valid[stuck], vmax[stuck])
     return new, ~feasible
 
 
