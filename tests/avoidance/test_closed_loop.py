@@ -88,3 +88,13 @@ def test_buavc_team_with_noise_reaches_goals_without_collision():
     trace = robofleet.simulate(robofleet.load_scenario("scenarios/avoidance/circle_swap.yaml"), seed=1)
     s = trace.summary()
     assert s["collisions"] == 0 and s["arrived"] == 1.0
+
+
+def test_singular_covariances_are_valid_input():
+    """A robot certain along one axis (Σ singular but PSD), and an obstacle likewise."""
+    spec = robofleet.load_scenario({
+        "workspace": {"obstacle_cov": [[0.01, 0], [0, 0]], "obstacles": [{"center": [0, -2], "size": [1, 1]}]},
+        "robots": {"cov": [[0.01, 0], [0, 0]], "n": 4, "layout": {"kind": "antipodal"}}, "max_steps": 120,
+    })
+    s = robofleet.simulate(spec, seed=1).summary()
+    assert s["collisions"] == 0 and s["obstacle_collisions"] == 0

@@ -81,10 +81,15 @@ def shared_covariance_separator(mi: np.ndarray, mj: np.ndarray, cov: np.ndarray)
 
     ``Σ_i = Σ_j = Σ`` gives ``F(½) = 0``, so ``a = Σ⁻¹(p̂_j − p̂_i)`` and
     ``b = aᵀ(p̂_i + p̂_j)/2`` (normalised). ``Σ = 0`` is the deterministic BVC limit
-    ``a ∝ p̂_j − p̂_i``. O(K d) for K pairs.
+    ``a ∝ p̂_j − p̂_i``; a singular ``Σ ≠ 0`` is regularised as in :func:`separator_flat`.
+    O(K d) for K pairs.
     """
     diff = mj - mi
-    a = diff if not np.any(cov) else np.linalg.solve(cov, diff.T).T
+    if np.any(cov):
+        reg, _ = _regularise(cov[None], cov[None])
+        a = np.linalg.solve(reg[0], diff.T).T
+    else:
+        a = diff
     norm = np.linalg.norm(a, axis=-1)
     b = np.einsum("kd,kd->k", a, 0.5 * (mi + mj))
     return a / norm[:, None], b / norm

@@ -94,9 +94,8 @@ def run(spec: Spec, seed=None, progress: bool = False) -> Trace:
     starts, goals = sample_layout(spec, rng)
     setup = method_setup(spec)
     walls = wall_planes(spec.workspace.bounds_vertices())
-    chol = np.linalg.cholesky(spec.robots.covariance() + 1e-300 * np.eye(2)) if spec.robots.covariance().any() else np.zeros((2, 2))
-    obs_cov = spec.workspace.obstacle_covariance()
-    obs_chol = np.linalg.cholesky(obs_cov) if obs_cov.any() else np.zeros((2, 2))
+    chol = noise_factor(spec.robots.covariance())
+    obs_chol = noise_factor(spec.workspace.obstacle_covariance())
     covs = np.broadcast_to(setup.robot_cov, (n, 2, 2))
     radius = np.full(n, setup.radius)
     deadlock = DeadlockParams(**spec.deadlock.model_dump())
@@ -138,10 +137,25 @@ def run(spec: Spec, seed=None, progress: bool = False) -> Trace:
     }
     if record_cells:
         arrays.update(_pad_cells(cells_log))
+    return _trace(spec, seed, arrays, events, starts, goals, state)
+
+
+def noise_factor(cov: np.ndarray) -> np.ndarray:
+    """``L`` with ``L Lᵀ = Σ`` for any symmetric PSD ``Σ`` (Cholesky, eigen-factor if singular)."""
+    if not np.any(cov):
+        return np.zeros_like(cov)
+    try:
+        return np.linalg.cholesky(cov)
+    except np.linalg.LinAlgError:
+        w, v = np.linalg.eigh(cov)
+        return v * np.sqrt(np.maximum(w, 0.0))
+
+
+def _trace(spec: Spec, seed, arrays, events, starts, goals, state: ControllerState) -> Trace:
     metadata = {
-        "scenario": spec.name, "method": spec.method, "seed": _seed_repr(seed), "dt": dt,
+        "scenario": spec.name, "method": spec.method, "seed": _seed_repr(seed), "dt": spec.dt,
         "radius": spec.robots.radius, "goals": goals, "starts": starts, "goal_tolerance": spec.goal_tolerance,
-        "delta": spec.delta, "robot_cov": spec.robots.covariance(), "n_robots": n, "v_max": spec.robots.v_max,
+        "delta": spec.delta, "robot_cov": spec.robots.covariance(), "n_robots": spec.robots.n, "v_max": spec.robots.v_max,
     }
     results = {"deadlock_detections": int(state.deadlocks.sum()), "empty_cell_steps": int(sum(e["kind"] == "empty_cell" for e in events))}
     return Trace("avoidance", arrays, events, metadata, results, spec.workspace.build())
