@@ -16,14 +16,15 @@ import platform
 import time
 
 from robofleet import load_scenario
-from robofleet.search.reproduce import FIG7_ALGORITHMS, FIG7_ROBOTS, run_seeds, shipped_scenario
+from robofleet.scenarios import shipped_scenario
+from robofleet.search.reproduce import FIG7_ALGORITHMS, FIG7_ROBOTS, run_seeds
 from robofleet.search.scenario import build_problem
 from robofleet.search.simulation import LABELS, run_search, run_search_batch
 
 
 def measure(algorithm, n_robots: int, runs: int, batch: int) -> tuple[float, float, float]:
     """(seconds per run alone, seconds per run in batches, mean simulated steps per run)."""
-    spec = load_scenario(shipped_scenario("fig7.yaml"), {"robots.count": n_robots, "algorithm": algorithm.value,
+    spec = load_scenario(shipped_scenario("search", "fig7.yaml"), {"robots.count": n_robots, "algorithm": algorithm.value,
                                                          "require_guarantee": False})
     run_search(build_problem(spec, 0), algorithm, 0)  # warm caches (grid, sensing tables)
     seeds = run_seeds(99, 0, runs)
@@ -60,7 +61,7 @@ def main() -> None:
         total = 0.0
         for alg in FIG7_ALGORITHMS:
             for n in FIG7_ROBOTS:
-                spec = load_scenario(shipped_scenario("fig7.yaml"), {"robots.count": n, "algorithm": alg.value})
+                spec = load_scenario(shipped_scenario("search", "fig7.yaml"), {"robots.count": n, "algorithm": alg.value})
                 total += measure_batched(spec, alg, run_seeds(99, 0, args.runs), args.batch) * 500
         print(f"projected Fig. 7 sweep (26,000 runs, batched): {total:.0f} s on one core, ~{total / 2:.0f} s on two workers")
 
