@@ -24,7 +24,12 @@ def progress_bar(total: int | None, description: str, enabled: bool = True) -> P
 
 @contextmanager
 def tracked(total: int | None, description: str, enabled: bool = True) -> Iterator["callable"]:
-    """Context manager yielding ``advance(n=1)`` that moves a progress bar forward."""
+    """Context manager yielding ``advance(n=1)`` that moves a progress bar forward.
+
+    A loop that ends early on its own (a run whose robots all arrived) shows a full bar of
+    the steps it took; one left by an exception keeps its partial bar.
+    """
     with progress_bar(total, description, enabled) as bar:
         task = bar.add_task(description, total=total)
         yield lambda n=1: bar.advance(task, n)
+        bar.update(task, total=bar.tasks[0].completed)
