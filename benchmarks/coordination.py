@@ -110,8 +110,6 @@ class TimedDetector(IncrementalCycleDetector):
 
 
 def bench_flip_tests(n, rng, max_steps):
-    import robofleet.coordination.simulation as sim
-
     traj = synthetic_plan(n, rng)
     space = build_coordination_space(traj)
     layout = build_segment_layout(space)
@@ -122,13 +120,8 @@ def bench_flip_tests(n, rng, max_steps):
         TimedDetector.progress = ctx.progress
         return True
 
-    original = sim.IncrementalCycleDetector
-    sim.IncrementalCycleDetector = TimedDetector
-    try:
-        run = PlanExecutor(traj, space, Variant(Method.TFF, True), KnownProbabilities(prob, 0.1), prob, layout=layout,
-                       flip_test=always).run(1, max_steps)
-    finally:
-        sim.IncrementalCycleDetector = original
+    run = PlanExecutor(traj, space, Variant(Method.TFF, True), KnownProbabilities(prob, 0.1), prob, layout=layout,
+                       flip_test=always, detector=TimedDetector).run(1, max_steps)
     log = np.array(TimedDetector.log, dtype=float)
     inc, full, rebuild = (np.median(log[:, k]) * 1e3 for k in range(3))
     print(f"\n## flip test at {n} robots ({space.n_obstacles} obstacles, {layout.n_nodes} segment vertices, "

@@ -170,8 +170,6 @@ class ComparingDetector(IncrementalCycleDetector):
 @settings(max_examples=40, deadline=None, derandomize=True)
 @given(seed=SEEDS, n_robots=st.integers(3, 6), resolution=st.sampled_from(list(Resolution)))
 def test_incremental_and_full_cycle_tests_agree(seed, n_robots, resolution):
-    import robofleet.coordination.simulation as sim
-
     rng = np.random.default_rng(seed)
     traj, space, _ = random_instance(rng, n_robots, ring=bool(seed % 2))
     layout = build_segment_layout(space, resolution)
@@ -180,12 +178,7 @@ def test_incremental_and_full_cycle_tests_agree(seed, n_robots, resolution):
         ComparingDetector.progress = ctx.progress
         return True
 
-    original = sim.IncrementalCycleDetector
-    sim.IncrementalCycleDetector = ComparingDetector
-    try:
-        run = executor(traj, space, True, flip_test, layout=layout, p=0.5).run(seed, 5000)
-    finally:
-        sim.IncrementalCycleDetector = original
+    run = executor(traj, space, True, flip_test, layout=layout, p=0.5, detector=ComparingDetector).run(seed, 5000)
     assert run.finished and not run.deadlock
 
 

@@ -121,6 +121,8 @@ class PlanExecutor:
     probability: ``(n, K_max + 1)`` true disturbance probability at each plan step.
     layout: segment layout (built on demand when the check is on).
     flip_test: override of the flip test (tests use it to inject arbitrary flips).
+    detector: the cycle-test class (``IncrementalCycleDetector``; tests and benchmarks pass
+        a subclass that checks or times each answer against the full reference).
     disturbed: override ``disturbed(step, progress) -> bool (n,)`` of the random disturbances.
     observe_cells: ``(n, K_max + 1)`` map cells for a learned estimate.
     """
@@ -133,6 +135,7 @@ class PlanExecutor:
     layout: SegmentLayout | None = None
     resolution: Resolution = Resolution.EXACT
     flip_test: Callable[[FlipContext], bool] | None = None
+    detector: type[IncrementalCycleDetector] = IncrementalCycleDetector
     disturbed: Callable[[int, np.ndarray], np.ndarray] | None = None
     observe_cells: np.ndarray | None = None
     record_cycles: bool = False
@@ -185,7 +188,7 @@ class PlanExecutor:
             return None
         if self.layout is None:
             self.layout = build_segment_layout(self.space, self.resolution)
-        return IncrementalCycleDetector(self.layout, labels)
+        return self.detector(self.layout, labels)
 
     def _flip_round(self, rule, labels, x, tried, detector, stats, events, t) -> None:
         """Flip tests for every waiting robot's blocking obstacles (in robot order)."""
