@@ -27,7 +27,7 @@ from pydantic import Field, field_validator, model_validator
 
 from ..core.errors import ScenarioError
 from ..dynamics.quadrotor import QuadrotorParams
-from ..scenarios.base import SpecModel
+from ..core.config import SpecModel
 from .mpc import MPCConfig
 from .orca import OrcaParams
 

@@ -45,7 +45,7 @@ from ..core.errors import ConfigError
 from ..dynamics import double_integrator as di
 from ..dynamics import quadrotor as quad
 from ..dynamics import unicycle as uni
-from ..scenarios.base import SpecModel
+from ..core.config import SpecModel
 from .braking import braking_control
 
 ModelName = Literal["single_integrator", "double_integrator", "unicycle", "quadrotor"]

@@ -29,7 +29,7 @@ import numpy as np
 from pydantic import Field
 from scipy.spatial import cKDTree
 
-from ..scenarios.base import SpecModel
+from ..core.config import SpecModel
 
 _EPS = 1e-12
 

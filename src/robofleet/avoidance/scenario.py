@@ -28,7 +28,7 @@ from shapely.geometry import Polygon
 from ..core import geometry
 from ..core.errors import ScenarioError
 from ..core.workspace import Workspace
-from ..scenarios.base import SpecModel
+from ..core.config import SpecModel
 from .models_spec import ModelSpec, OrcaParams, Space3DSpec, TeamSpec, check_models, reject_3d_obstacles_in_2d
 
 Point = tuple[float, float]

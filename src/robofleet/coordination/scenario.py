@@ -28,7 +28,7 @@ from ..core.geometry import ensure_ccw
 from ..core.rng import RngLike, keyed_generator
 from ..core.trace import Trace
 from ..core.workspace import Region, Workspace
-from ..scenarios.base import SpecModel, as_array
+from ..core.config import SpecModel, as_array
 from .coordination_space import CoordinationSpace, build_coordination_space
 from .label_flipping import KnownProbabilities, LearnedProbabilities
 from .maps import probability_map, sample_flow_instance, x_corridor_workspace

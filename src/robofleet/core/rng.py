@@ -1,8 +1,15 @@
-"""Random number generation: one normalisation point, no global state.
+"""Random number generation: one seed rule, one normalisation point, no global state.
 
-Every stochastic entry point of robofleet takes ``rng`` (an int, a
-``numpy.random.SeedSequence``, a ``numpy.random.Generator`` or ``None``) and passes it
-through :func:`as_generator` once.
+The seed rule (in the spirit of Gymnasium's ``utils.seeding``): every run entry point
+(``simulate(spec, seed=None)`` of each family) passes its ``seed`` through
+:func:`resolve_seed` once. ``None`` draws a fresh seed from the operating system's
+entropy; either way the run uses, and records in its trace, the integer it got, so
+``simulate(spec, seed=trace.seed)`` replays every array bit for bit. Anything that is
+not a non-negative integer below 2**63 is refused with a one-line
+:class:`~robofleet.core.errors.ConfigError`.
+
+Lower-level stochastic functions take ``rng`` (an int, a ``numpy.random.SeedSequence``,
+a ``numpy.random.Generator`` or ``None``) and pass it through :func:`as_generator` once.
 """
 
 from __future__ import annotations
@@ -12,7 +19,37 @@ from typing import Union
 
 import numpy as np
 
+from .errors import ConfigError, short_repr
+
 RngLike = Union[int, np.random.SeedSequence, np.random.Generator, None]
+MAX_SEED = 2**63 - 1
+
+
+def resolve_seed(seed: object = None, where: str = "seed") -> int:
+    """The integer seed a run uses: ``seed`` itself, or a fresh one drawn when ``None``.
+
+    Parameters
+    ----------
+    seed:
+        ``None`` or an integer in ``[0, 2**63)`` (Python or numpy integer; ``bool`` is refused).
+    where:
+        The name shown in the error message.
+
+    Returns
+    -------
+    int
+        The seed; record it (``Trace.seed``) so the run can be replayed.
+
+    Raises
+    ------
+    ConfigError
+        For anything else (strings, floats, negative numbers, generators...).
+    """
+    if seed is None:
+        return int(np.random.SeedSequence().entropy) & MAX_SEED
+    if isinstance(seed, (bool, np.bool_)) or not isinstance(seed, (int, np.integer)) or not 0 <= int(seed) <= MAX_SEED:
+        raise ConfigError(f"{where}: expected a non-negative integer below 2**63 or None, received {short_repr(seed)}")
+    return int(seed)
 
 
 def as_generator(rng: RngLike = None) -> np.random.Generator:

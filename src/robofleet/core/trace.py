@@ -4,8 +4,8 @@ Arrays are per-step, shaped ``(n_steps, n_robots, dim)`` (positions include the 
 state, so ``n_steps = steps + 1``). Events are small dicts (``{"step": 12, "kind":
 "deadlock", "robot": 3}``). ``metadata`` holds what is needed to interpret the arrays
 (family, dt, radius, goals, workspace...), ``results`` the scalar outcomes the simulation
-decided (e.g. ``deadlock: true``); :meth:`Trace.summary` merges the standard motion
-metrics with ``results``.
+decided (e.g. ``deadlock: true``), written by the family's ``metrics.py`` so that
+every sweep can report them; :meth:`Trace.summary` puts the core keys in front of them.
 """
 
 from __future__ import annotations
@@ -17,11 +17,12 @@ from typing import Any
 
 import numpy as np
 
-from . import metrics
 from .errors import TraceError
 from .workspace import Region, Workspace
 
-TRACE_VERSION = 1
+TRACE_VERSION = 2
+CORE_SUMMARY_KEYS = ("family", "scenario", "seed", "success", "n_robots", "n_steps", "wall_seconds")
+"""The keys every family's summary starts with."""
 
 
 @dataclass
@@ -47,27 +48,31 @@ class Trace:
 
     @property
     def positions(self) -> np.ndarray:
+        """True positions ``(n_steps + 1, n_robots, dim)``."""
         return self.arrays["positions"]
 
-    def summary(self) -> dict:
-        """The dict written to ``summary.json``."""
-        out: dict[str, Any] = {}
+    @property
+    def seed(self) -> int:
+        """The seed the run used: ``simulate(spec, seed=trace.seed)`` replays it exactly."""
+        return int(self.metadata["seed"])
+
+    @property
+    def scenario(self) -> str:
+        """The scenario's name (its file stem when it has no ``name``)."""
+        return str(self.metadata.get("scenario", ""))
+
+    def summary(self) -> dict[str, Any]:
+        """The dict written to ``summary.json`` and to every sweep row.
+
+        The core keys (:data:`CORE_SUMMARY_KEYS`: ``family``, ``scenario``, ``seed``,
+        ``success``, ``n_robots``, ``n_steps``, ``wall_seconds``) first, then the
+        family's own per-run results (``results``, written by its ``metrics.py``).
+        """
         md = self.metadata
-        if "positions" in self.arrays and "goals" in md:
-            out.update(
-                metrics.motion_summary(
-                    self.positions,
-                    np.asarray(md["goals"], dtype=float),
-                    float(md["radius"]),
-                    float(md["dt"]),
-                    float(md.get("goal_tolerance", 0.0)),
-                    self.workspace,
-                    self.arrays.get("step_seconds"),
-                    self.arrays.get("arrival_steps"),
-                )
-            )
-        out.update(self.results)
-        return to_plain(out)
+        core = {"family": self.family, "scenario": md.get("scenario", ""), "seed": md.get("seed"),
+                "success": bool(self.results.get("success", False)), "n_robots": md.get("n_robots"),
+                "n_steps": md.get("n_steps"), "wall_seconds": md.get("wall_seconds")}
+        return to_plain({**core, **{k: v for k, v in self.results.items() if k not in core}})
 
     def save(self, directory: str | Path) -> Path:
         """Write ``trace.npz`` and ``trace.json`` into ``directory`` (created if needed)."""

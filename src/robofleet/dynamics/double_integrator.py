@@ -16,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 from pydantic import Field
 
-from ..scenarios.base import SpecModel
+from ..core.config import SpecModel
 
 
 class DoubleIntegratorParams(SpecModel):

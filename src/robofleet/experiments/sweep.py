@@ -3,10 +3,15 @@
 A sweep file (YAML) or mapping has the keys
 
 ``scenario``
-    A scenario file path (relative to the sweep file) or an inline scenario mapping.
+    A scenario file path (relative to the sweep file), a shipped scenario name
+    (``avoidance/three_boxes``) or an inline scenario mapping.
+``overrides``
+    Optional ``{dotted.path: value}`` applied to the scenario in every run.
 ``grid``
     ``{dotted.path: [values]}``; the sweep runs the cartesian product, each combination
-    applied to the scenario with ``load_scenario(..., overrides=...)``. May be empty.
+    applied to the scenario with ``load_scenario(..., overrides=...)``. May be empty. A
+    key naming several paths joined by ``+`` (``robots.sigma+workspace.obstacle_sigma``)
+    sets all of them to the same value (parameters that move together).
 ``seeds``
     A count ``n`` (seeds ``spawn_seeds(root_seed, n)``) or an explicit list of seeds.
 ``root_seed``
@@ -41,7 +46,8 @@ from pydantic import field_validator
 from ..core.errors import ScenarioError
 from ..core.rng import spawn_seeds
 from ..core.trace import to_plain
-from ..scenarios import SpecModel, load_scenario, read_mapping, simulate, validate_model
+from ..core.config import SpecModel, read_mapping, set_path, validate_model
+from ..scenarios import catalogue, load_scenario, simulate
 from .executors import Executor, as_executor
 from .store import ERROR_COLUMN, ResultStore
 from .tasks import run_tasks
@@ -53,6 +59,7 @@ class SweepSpec(SpecModel):
     """The validated content of a sweep file (see the module docstring)."""
 
     scenario: Any
+    overrides: Any = {}
     grid: Any = {}
     seeds: Any
     root_seed: Any = 0
@@ -68,6 +75,18 @@ class SweepSpec(SpecModel):
             return dict(value)
         raise ScenarioError("", "a scenario file path or an inline scenario mapping", value)
 
+    @field_validator("overrides", mode="before")
+    @classmethod
+    def _overrides(cls, value):
+        if value is None:
+            return {}
+        if not isinstance(value, Mapping):
+            raise ScenarioError("", "a mapping {dotted.path: value}", value)
+        for key in value:
+            if not is_field_path(key):
+                raise ScenarioError("", "dotted field paths such as robots.radius as keys", key)
+        return dict(value)
+
     @field_validator("grid", mode="before")
     @classmethod
     def _grid(cls, value):
@@ -76,8 +95,8 @@ class SweepSpec(SpecModel):
         if not isinstance(value, Mapping):
             raise ScenarioError("", "a mapping {dotted.path: [values]}", value)
         for key, values in value.items():
-            if not isinstance(key, str) or not key or any(not part for part in key.split(".")):
-                raise ScenarioError("", "dotted field paths such as robots.radius as keys", key)
+            if not isinstance(key, str) or not all(is_field_path(part) for part in key.split("+")):
+                raise ScenarioError("", "dotted field paths such as robots.radius (or several joined by +) as keys", key)
             if key in RESERVED_COLUMNS:
                 raise ScenarioError(key, f"a scenario field path (not one of the reserved columns {list(RESERVED_COLUMNS)})", key)
             if not isinstance(values, list) or not values:
@@ -118,6 +137,16 @@ class SweepSpec(SpecModel):
         return list(value)
 
 
+def is_field_path(key: Any) -> bool:
+    """Whether ``key`` is a dotted field path such as ``robots.radius``."""
+    return isinstance(key, str) and bool(key) and all(part for part in key.split("."))
+
+
+def expand_overrides(combination: Mapping[str, Any]) -> dict[str, Any]:
+    """Scenario overrides of a grid combination: a ``a+b`` key sets both ``a`` and ``b``."""
+    return {path: value for key, value in combination.items() for path in key.split("+")}
+
+
 def is_int(value) -> bool:
     return isinstance(value, (int, np.integer)) and not isinstance(value, (bool, np.bool_))
 
@@ -148,9 +177,11 @@ class SweepPlan:
     out: Path
 
 
-def simulate_task(task: dict, *, scenario: dict, grid_keys: tuple[str, ...], metrics: tuple[str, ...] | None) -> dict:
-    """Run one sweep task: the scenario with the task's grid values, at the task's seed."""
-    spec = load_scenario(scenario, overrides={key: task[key] for key in grid_keys})
+def simulate_task(task: dict, *, scenario: str | dict, fixed: Mapping[str, Any], grid_keys: tuple[str, ...],
+                  metrics: tuple[str, ...] | None) -> dict:
+    """Run one sweep task: the scenario with the sweep's overrides and the task's grid
+    values, at the task's seed."""
+    spec = load_scenario(scenario, overrides={**fixed, **expand_overrides({key: task[key] for key in grid_keys})})
     summary = simulate(spec, seed=task["seed"], progress=False).summary()
     if metrics is None:
         return summary
@@ -176,29 +207,45 @@ def plan_sweep(sweep_file_or_mapping: str | Path | Mapping[str, Any], out: str |
         value list, a non-positive seed count, or a grid combination whose scenario is
         invalid (with the scenario's own field, expectation and value).
     """
-    data, source = read_mapping(sweep_file_or_mapping)
+    ref = catalogue.resolve(sweep_file_or_mapping, "sweeps") if isinstance(sweep_file_or_mapping, (str, Path)) else sweep_file_or_mapping
+    data, source = read_mapping(ref)
     spec: SweepSpec = validate_model(SweepSpec, data, source)
-    base_dir = Path(source).parent if source else Path.cwd()
-    scenario_ref = str(base_dir / spec.scenario) if isinstance(spec.scenario, str) else spec.scenario
+    scenario_ref = sweep_scenario(spec, source)
     grid_keys = tuple(spec.grid)
     combinations = tuple(
-        check_combination(scenario_ref, dict(zip(grid_keys, values)), source)
+        check_combination(scenario_ref, dict(zip(grid_keys, values)), source, spec.overrides)
         for values in itertools.product(*spec.grid.values())
     )
     scenario = read_mapping(scenario_ref)[0]
+    for key, value in spec.overrides.items():
+        set_path(scenario, key, value)
     seeds = tuple(spawn_seeds(spec.root_seed, spec.seeds) if isinstance(spec.seeds, int) else spec.seeds)
     tasks = tuple(
         {"run_id": stable_run_id(scenario, combination, seed), "seed": seed, **combination}
         for combination in combinations
         for seed in seeds
     )
-    fn = functools.partial(simulate_task, scenario=scenario, grid_keys=grid_keys, metrics=None if spec.metrics is None else tuple(spec.metrics))
+    fn = functools.partial(simulate_task, scenario=scenario_ref, fixed=dict(spec.overrides), grid_keys=grid_keys, metrics=None if spec.metrics is None else tuple(spec.metrics))
     stem = Path(source).stem if source else "sweep"
     out_dir = Path(out) if out is not None else Path(spec.out) if spec.out else Path("results") / stem
     return SweepPlan(source, scenario, grid_keys, combinations, seeds, tasks, fn, out_dir)
 
 
-def check_combination(scenario_ref: str | dict, combination: dict, source: str | None) -> dict:
+def sweep_scenario(spec: SweepSpec, source: str | None) -> str | dict:
+    """What every task of the sweep loads: a scenario file path (a path relative to the
+    sweep file, or a shipped scenario name resolved through the catalogue), kept as a path
+    so that files the scenario names (a coordination plan) resolve beside it; or the
+    inline mapping."""
+    if not isinstance(spec.scenario, str):
+        return dict(spec.scenario)
+    base = Path(source).parent if source else None
+    try:
+        return str(catalogue.resolve(spec.scenario, "scenarios", base))
+    except ScenarioError as exc:
+        raise ScenarioError("scenario", exc.expected, exc.received, source=source) from None
+
+
+def check_combination(scenario_ref: str | dict, combination: dict, source: str | None, fixed: Mapping[str, Any] | None = None) -> dict:
     """Validate the scenario with one grid combination; re-raise naming the sweep file.
 
     Returns the combination with each value as the validated scenario holds it (e.g. the
@@ -206,13 +253,13 @@ def check_combination(scenario_ref: str | dict, combination: dict, source: str |
     and run ids carry the values that were actually simulated.
     """
     try:
-        spec = load_scenario(scenario_ref, overrides=combination)
+        spec = load_scenario(scenario_ref, overrides={**(fixed or {}), **expand_overrides(combination)})
     except ScenarioError as exc:
         where = "scenario" if not combination else "grid " + ", ".join(f"{k}={v!r}" for k, v in combination.items())
         inner = f"{exc.source or 'inline scenario'}" + (f": {exc.field}" if exc.field else "")
         raise ScenarioError(f"{where} → {inner}", exc.expected, exc.received, source=source) from None
     dumped = spec.model_dump(mode="json")
-    return {key: get_path(dumped, key, value) for key, value in combination.items()}
+    return {key: get_path(dumped, key.split("+")[0], value) for key, value in combination.items()}
 
 
 def get_path(mapping: Mapping, dotted: str, default: Any) -> Any:

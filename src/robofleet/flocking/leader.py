@@ -28,7 +28,7 @@ from pydantic import Field, field_validator
 
 from ..core.errors import ScenarioError
 from ..core.rng import RngLike, as_generator
-from ..scenarios.base import SpecModel
+from ..core.config import SpecModel
 
 AUTO_SPEED_FRACTION = 0.4
 AUTO_TURN_FRACTION = 0.4

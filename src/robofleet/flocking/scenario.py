@@ -23,7 +23,7 @@ from pydantic import Field, field_validator, model_validator
 from ..core.errors import ScenarioError
 from ..core.rng import RngLike, as_generator, keyed_generator
 from ..core.trace import Trace
-from ..scenarios.base import SpecModel
+from ..core.config import SpecModel
 from . import metrics
 from .basic import BasicAlgorithm
 from .hula_hoop import HulaHoopAlgorithm

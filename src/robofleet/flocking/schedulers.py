@@ -35,7 +35,7 @@ from pydantic import Field, model_validator
 
 from ..core.errors import ConfigError, ScenarioError
 from ..core.progress import tracked
-from ..scenarios.base import SpecModel
+from ..core.config import SpecModel
 from .leader import LeaderCourse
 from .model import Algorithm, LocalFrames, look
 from .patterns import Pattern

@@ -1,7 +1,26 @@
-"""Scenario files: strict validation and the family registry."""
+"""Scenarios: the family table, loading and validation, and the shipped catalogue.
 
-from .base import SpecModel, read_mapping, set_path, validate_model
-from .registry import FAMILIES, load_scenario, simulate
-from .shipped import shipped_scenario
+``robofleet.scenarios.list()`` lists the shipped scenarios, ``robofleet.scenarios.path(name)``
+gives one's file; :func:`load_scenario` and :func:`simulate` accept those names too.
+"""
 
-__all__ = ["SpecModel", "read_mapping", "set_path", "validate_model", "FAMILIES", "load_scenario", "simulate", "shipped_scenario"]
+import builtins
+
+from .catalogue import Entry, names, resolve
+from .catalogue import list as _catalogue_list
+from .catalogue import path as _catalogue_path
+from .registry import DEFAULT_FAMILY, FAMILIES, family, family_of, load_scenario, read_scenario, simulate
+
+
+def list(kind: str = "scenarios") -> builtins.list[Entry]:  # noqa: A001 - public name of the catalogue
+    """Every shipped scenario (``kind="sweeps"``: sweep) as :class:`Entry` (name, family, description, path)."""
+    return _catalogue_list(kind)
+
+
+def path(name: str, kind: str = "scenarios"):
+    """The file of the shipped scenario (or sweep) ``name``, e.g. ``"avoidance/circle_swap"``."""
+    return _catalogue_path(name, kind)
+
+
+__all__ = ["Entry", "FAMILIES", "DEFAULT_FAMILY", "family", "family_of", "list", "path", "names", "resolve",
+           "load_scenario", "read_scenario", "simulate"]

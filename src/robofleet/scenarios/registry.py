@@ -1,77 +1,93 @@
-"""Scenario families and the two public entry points :func:`load_scenario` and
-:func:`simulate`.
+"""The family table and the two public entry points :func:`load_scenario` and :func:`simulate`.
 
-A family is a module ``robofleet.<family>.scenario`` that defines
-
-* ``Spec``: the pydantic model of a validated scenario (a :class:`SpecModel` with a
-  ``family: Literal["<family>"]`` field), and
-* ``simulate(spec, seed=None, progress=False) -> Trace``.
-
-Modules are imported lazily, so loading one family never imports another.
+:data:`FAMILIES` maps each ``family:`` key to its :class:`~robofleet.core.family.Family`
+(the ``FAMILY`` of ``robofleet/<family>/family.py``). It is the only registry: loading,
+the CLI, viz and the conformance suite read it. A fifth family is one more import here.
 """
 
 from __future__ import annotations
 
-import importlib
 from pathlib import Path
 from typing import Any, Mapping
 
-from ..core.errors import ScenarioError
-from ..core.rng import RngLike
+from ..avoidance.family import FAMILY as AVOIDANCE
+from ..coordination.family import FAMILY as COORDINATION
+from ..core.config import SpecModel, read_mapping, set_path, validate_model
+from ..core.errors import ConfigError, ScenarioError
+from ..core.family import Family
 from ..core.trace import Trace
-from .base import read_mapping, set_path, validate_model
+from ..flocking.family import FAMILY as FLOCKING
+from ..search.family import FAMILY as SEARCH
+from . import catalogue
 
-FAMILIES: dict[str, str] = {
-    "avoidance": "robofleet.avoidance.scenario",
-    "coordination": "robofleet.coordination.scenario",
-    "flocking": "robofleet.flocking.scenario",
-    "search": "robofleet.search.scenario",
-}
+FAMILIES: dict[str, Family] = {f.name: f for f in (AVOIDANCE, COORDINATION, FLOCKING, SEARCH)}
 DEFAULT_FAMILY = "avoidance"
 
+ScenarioRef = str | Path | Mapping[str, Any]
 
-def family_module(name: str, source: str | None = None):
-    """The module implementing family ``name``."""
-    if name not in FAMILIES:
+
+def family(name: str, source: str | None = None) -> Family:
+    """The :class:`Family` called ``name`` (one-line error naming the valid ones)."""
+    if not isinstance(name, str) or name not in FAMILIES:
         raise ScenarioError("family", f"one of {sorted(FAMILIES)}", name, source=source)
-    return importlib.import_module(FAMILIES[name])
+    return FAMILIES[name]
 
 
-def load_scenario(path_or_mapping: str | Path | Mapping[str, Any], overrides: Mapping[str, Any] | None = None):
+def family_of(spec: SpecModel) -> Family:
+    """The family a validated spec belongs to."""
+    return family(getattr(spec, "family", None))
+
+
+def read_scenario(ref: ScenarioRef) -> tuple[dict, str | None]:
+    """``(mapping, source)`` of a scenario file, shipped name or mapping."""
+    if isinstance(ref, Mapping):
+        return read_mapping(ref)
+    if not isinstance(ref, (str, Path)) or (isinstance(ref, str) and not ref.strip()):
+        raise ConfigError(f"scenario: expected a file path, a shipped scenario name or a mapping, received {type(ref).__name__} {ref!r}")
+    return read_mapping(catalogue.resolve(ref))
+
+
+def load_scenario(ref: ScenarioRef, overrides: Mapping[str, Any] | None = None) -> SpecModel:
     """Read and validate a scenario.
 
     Parameters
     ----------
-    path_or_mapping:
-        A YAML file path, or a mapping with the same keys as the file.
+    ref:
+        A YAML file path, a shipped scenario name (``"avoidance/circle_swap"``, see
+        :func:`robofleet.scenarios.list`), or a mapping with the same keys as a file.
     overrides:
         Optional ``{"dotted.field": value}`` applied before validation (used by sweeps).
 
     Returns
     -------
-    The validated, frozen scenario model of its family. Its ``source`` attribute holds
-    the file it came from (or ``None``).
+    The validated, frozen spec of its family; ``spec.source`` is the file it came from
+    (``None`` for a mapping).
 
     Raises
     ------
     ScenarioError
         On the first invalid field, naming the file, field path, expectation and value.
+    ConfigError
+        When ``ref`` or ``overrides`` are not of a usable type.
     """
-    data, source = read_mapping(path_or_mapping)
+    data, source = read_scenario(ref)
+    if overrides is not None and not isinstance(overrides, Mapping):
+        raise ConfigError(f"overrides: expected a mapping {{'dotted.field': value}}, received {type(overrides).__name__} {overrides!r}")
     for key, value in (overrides or {}).items():
+        if not isinstance(key, str) or not key or any(not part for part in key.split(".")):
+            raise ConfigError(f"overrides: expected dotted field paths such as 'robots.radius' as keys, received {key!r}")
         set_path(data, key, value)
-    family = data.setdefault("family", DEFAULT_FAMILY)
-    module = family_module(family, source)
-    spec = validate_model(module.Spec, data, source)
+    fam = family(data.setdefault("family", DEFAULT_FAMILY), source)
+    spec = validate_model(fam.spec, data, source)
     spec._source = source
     return spec
 
 
-def simulate(scenario, seed: RngLike = None, progress: bool = False) -> Trace:
-    """Run a validated scenario (or a path/mapping, loaded first) and return its :class:`Trace`.
+def simulate(scenario: ScenarioRef | SpecModel, seed: int | None = None, progress: bool = False) -> Trace:
+    """Run a scenario (a validated spec, or anything :func:`load_scenario` takes).
 
-    The same ``seed`` always gives the same trace.
+    ``seed=None`` draws a seed and records it (``trace.seed``);
+    ``simulate(spec, seed=trace.seed)`` reproduces every array bit for bit.
     """
-    if not hasattr(scenario, "family") or isinstance(scenario, (str, Path, Mapping)):
-        scenario = load_scenario(scenario)
-    return family_module(scenario.family).simulate(scenario, seed=seed, progress=progress)
+    spec = scenario if isinstance(scenario, SpecModel) else load_scenario(scenario)
+    return family_of(spec).simulate(spec, seed=seed, progress=progress)

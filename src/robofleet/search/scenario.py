@@ -31,7 +31,7 @@ from ..core.geometry import ensure_ccw
 from ..core.rng import RngLike, as_generator, keyed_generator
 from ..core.trace import Trace
 from ..core.workspace import Workspace
-from ..scenarios.base import SpecModel
+from ..core.config import SpecModel
 from .assumptions import AssumptionReport, check_assumptions
 from .coverage import CoverageProbe
 from .grids import Grid, GridKind, build_grid

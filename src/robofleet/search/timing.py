@@ -21,7 +21,7 @@ from typing import Literal
 import numpy as np
 from pydantic import Field
 
-from ..scenarios.base import SpecModel
+from ..core.config import SpecModel
 
 
 class MotionTiming(SpecModel):

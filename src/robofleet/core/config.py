@@ -1,5 +1,10 @@
-"""Scenario-file plumbing shared by every family: strict pydantic models, YAML reading,
-and the translation of validation failures into one-line :class:`ScenarioError` s.
+"""Config objects shared by every layer: the strict pydantic base :class:`SpecModel`,
+YAML reading, and the translation of validation failures into one-line
+:class:`~robofleet.core.errors.ScenarioError` s.
+
+Dynamics, algorithms and scenario specs all build their parameter objects on
+:class:`SpecModel` (frozen, keyword-only, unknown keys are errors), so nothing below the
+scenario layer has to import it.
 """
 
 from __future__ import annotations
@@ -12,7 +17,7 @@ import numpy as np
 import yaml
 from pydantic import BaseModel, ConfigDict, PrivateAttr, ValidationError
 
-from ..core.errors import ScenarioError
+from .errors import ScenarioError
 
 
 class SpecModel(BaseModel):
@@ -25,6 +30,12 @@ class SpecModel(BaseModel):
     def source(self) -> str | None:
         """The file this scenario was loaded from (``None`` for a mapping)."""
         return self._source
+
+    @property
+    def scenario_name(self) -> str:
+        """The scenario's ``name`` field, else its file's stem, else ``""``."""
+        name = getattr(self, "name", "")
+        return str(name) if name else (Path(self._source).stem if self._source else "")
 
 
 def read_mapping(path_or_mapping: str | Path | Mapping[str, Any]) -> tuple[dict, str | None]:

@@ -1,0 +1,105 @@
+"""The shipped catalogue: scenario and sweep files addressable by name.
+
+Every shipped scenario has a name, its path below the catalogue folder without
+``.yaml`` (``avoidance/circle_swap``); every shipped sweep likewise (``buavc_noise``).
+A checkout's own ``scenarios/`` and ``sweeps/`` folders win (so edits are picked up);
+an installed wheel carries copies as ``robofleet/_scenarios`` and ``robofleet/_sweeps``.
+
+Every command and :func:`robofleet.load_scenario` accept a name wherever they accept a
+path; :func:`resolve` decides which one was meant (an existing file wins).
+"""
+
+from __future__ import annotations
+
+import builtins
+from dataclasses import dataclass
+from importlib import resources
+from pathlib import Path
+
+import yaml
+
+from ..core.errors import ScenarioError
+
+SUFFIX = ".yaml"
+ALIASES = {  # names of the files' earlier home, kept working
+    "avoidance_models/diff_drive": "avoidance/diff_drive",
+    "avoidance_models/double_integrator": "avoidance/double_integrator",
+    "avoidance_models/heterogeneous": "avoidance/heterogeneous",
+    "avoidance_models/quadrotors_3d": "avoidance/quadrotors_3d",
+}
+
+
+@dataclass(frozen=True)
+class Entry:
+    """One shipped file: its ``name``, ``family`` (``"sweep"`` for sweeps), the first line
+    of its leading comment as ``description``, and its ``path``."""
+
+    name: str
+    family: str
+    description: str
+    path: Path
+
+
+def folder(kind: str) -> Path:
+    """The folder of shipped ``kind`` files (``"scenarios"`` or ``"sweeps"``)."""
+    checkout = Path(__file__).resolve().parents[3] / kind
+    if checkout.is_dir() and (checkout.parent / "pyproject.toml").exists():
+        return checkout
+    return Path(str(resources.files("robofleet") / f"_{kind}"))
+
+
+def list(kind: str = "scenarios") -> builtins.list[Entry]:  # noqa: A001 - the documented name
+    """Every shipped scenario (or, with ``kind="sweeps"``, sweep), sorted by name."""
+    root = folder(kind)
+    entries = [describe(path, root, kind) for path in sorted(root.rglob(f"*{SUFFIX}"))]
+    return sorted(entries, key=lambda e: e.name)
+
+
+def names(kind: str = "scenarios") -> builtins.list[str]:
+    """The names of :func:`list`."""
+    return [e.name for e in list(kind)]
+
+
+def path(name: str, kind: str = "scenarios") -> Path:
+    """The file of the shipped scenario (or sweep) ``name``.
+
+    Raises
+    ------
+    ScenarioError
+        If there is no such shipped file; the message lists a few close names.
+    """
+    key = str(name).removesuffix(SUFFIX).strip("/")
+    key = ALIASES.get(key, key)
+    candidate = folder(kind) / f"{key}{SUFFIX}"
+    if key and candidate.is_file():
+        return candidate
+    known = names(kind)
+    close = [n for n in known if key.split("/")[-1] in n] or known
+    hint = ", ".join(close[:6]) + (", ..." if len(close) > 6 else "")
+    raise ScenarioError("", f"a file or a shipped {kind[:-1]} name ({hint}; `robofleet {kind}` lists them all)", str(name))
+
+
+def resolve(ref: str | Path, kind: str = "scenarios", base: Path | None = None) -> Path:
+    """A path for ``ref``: an existing file (relative to ``base`` if given), else the
+    shipped file of that name."""
+    given = Path(ref)
+    for candidate in ((base / given,) if base is not None and not given.is_absolute() else ()) + (given,):
+        if candidate.is_file():
+            return candidate
+    if given.exists():
+        raise ScenarioError("", f"a {kind[:-1]} file", f"{given} is a directory", source=str(given))
+    return path(str(ref), kind)
+
+
+def describe(file: Path, root: Path, kind: str) -> Entry:
+    """The catalogue entry of one shipped file."""
+    name = file.relative_to(root).with_suffix("").as_posix()
+    text = file.read_text()
+    lines = [ln[1:].strip() for ln in text.splitlines() if ln.startswith("#")]
+    description = lines[0] if lines else ""
+    if kind == "sweeps":
+        family = "sweep"
+    else:
+        data = yaml.safe_load(text) or {}
+        family = str(data.get("family", "avoidance")) if isinstance(data, dict) else "?"
+    return Entry(name, family, description, file)
