@@ -1,38 +1,183 @@
-"""The ``robofleet`` command line. Thin: every command calls the public Python API.
+"""The ``robofleet`` command line: generic commands over the family table.
 
-Family packages add their own commands (``reproduce <name>``, ``check`` ...) through a
-``register(app, reproduce)`` function in ``robofleet/cli/<family>.py``.
+Thin by design: every command calls the public Python API (:func:`robofleet.load_scenario`,
+:func:`robofleet.simulate`, a family's ``check``, :func:`robofleet.experiments.run_sweep`,
+:func:`robofleet.experiments.reproduce`), and every family gets every command.
+Anything a user can get wrong ends as one line on stderr and exit status 2.
 """
 
 from __future__ import annotations
 
-import importlib
 import sys
+from pathlib import Path
+from typing import Annotated, Optional
 
 import typer
+from rich.console import Console
 
+from .. import __version__
 from ..core.errors import RobofleetError
+from ..core.trace import dumps_json
+from ..experiments import reproduce as run_reproduction
+from ..experiments import run_sweep, summarize_sweep
+from ..experiments.reproductions import REPRODUCTIONS
+from ..scenarios import FAMILIES, catalogue, family_of, load_scenario, simulate
+from .display import COLUMN_WIDTH, MIN_TABLE_COLUMNS, PREFERRED_COLUMNS, frame_table, key_value_table
 
-app = typer.Typer(add_completion=False, no_args_is_help=True, help="Decentralized multi-robot coordination.")
-reproduce = typer.Typer(no_args_is_help=True, help="Reproduce a paper's experiment (sweep + plots + markdown table).")
-app.add_typer(reproduce, name="reproduce")
+PAPERS = "; ".join(f"{f.name}: {f.paper}" for f in FAMILIES.values())
+app = typer.Typer(add_completion=False, no_args_is_help=True, rich_markup_mode=None,
+                  help=f"Decentralized multi-robot coordination, one family per paper ({PAPERS}).")
 
-FAMILY_CLIS = ("common", "avoidance", "avoidance_models", "coordination", "flocking", "search")
-
-
-def _register_family_commands() -> None:
-    for name in FAMILY_CLIS:
-        modname = f"robofleet.cli.{name}"
-        try:
-            module = importlib.import_module(modname)
-        except ModuleNotFoundError as exc:  # a family not built yet; any other import error is a bug
-            if exc.name != modname:
-                raise
-            continue
-        module.register(app, reproduce)
+# the options every command that runs work shares
+ScenarioArgument = Annotated[str, typer.Argument(help="Scenario: a YAML file or a shipped name such as avoidance/circle_swap (see `robofleet scenarios`).")]
+OutOption = Annotated[Optional[Path], typer.Option(help="Output directory.")]
+ExecutorOption = Annotated[str, typer.Option(help="Where the runs execute: serial, process (local worker processes) or dask.")]
+SchedulerOption = Annotated[Optional[str], typer.Option(help="Dask scheduler address, e.g. tcp://host:8786 (default: a local cluster).")]
+WorkersOption = Annotated[Optional[int], typer.Option(min=1, help="Local worker processes (default: available CPUs).")]
+QuietOption = Annotated[bool, typer.Option("--quiet", help="No progress bar and no result table.")]
 
 
-_register_family_commands()
+def version_callback(value: bool) -> None:
+    if value:
+        typer.echo(f"robofleet {__version__}")
+        raise typer.Exit()
+
+
+@app.callback()
+def root(version: Annotated[bool, typer.Option("--version", callback=version_callback, is_eager=True, help="Print the version and exit.")] = False) -> None:
+    """Decentralized multi-robot coordination."""
+
+
+@app.command("run")
+def run_command(
+    scenario: ScenarioArgument,
+    seed: Annotated[Optional[int], typer.Option(min=0, help="Seed of every random draw (default: a fresh one, printed so the run can be replayed).")] = None,
+    out: OutOption = None,
+    animate: Annotated[bool, typer.Option("--animate", help="Also write animation.gif.")] = False,
+    plot: Annotated[bool, typer.Option("--plot", help="Also write plot.png.")] = False,
+    quiet: QuietOption = False,
+) -> None:
+    """Simulate a scenario; write trace.npz, trace.json, summary.json (and plot.png, animation.gif)."""
+    spec = load_scenario(scenario)
+    family = family_of(spec)
+    trace = simulate(spec, seed=seed, progress=not quiet)
+    out_dir = out if out is not None else Path("runs") / f"{spec.scenario_name or family.name}-seed{trace.seed}"
+    trace.save(out_dir)
+    summary = trace.summary()
+    (out_dir / "summary.json").write_text(dumps_json(summary) + "\n")
+    written = ["trace.npz", "trace.json", "summary.json"]
+    if not quiet:
+        Console().print(key_value_table(summary, f"{spec.scenario_name} ({family.name}, seed {trace.seed})"))
+    if plot:
+        family.viz_module().plot_trace(trace, out_dir / "plot.png")
+        written.append("plot.png")
+    if animate:
+        family.viz_module().animate_trace(trace, out_dir / "animation.gif")
+        written.append("animation.gif")
+    typer.echo(f"wrote {out_dir}/ {{{', '.join(written)}}} (seed {trace.seed})")
+
+
+@app.command("validate")
+def validate_command(scenario: ScenarioArgument) -> None:
+    """Check a scenario without running it."""
+    spec = load_scenario(scenario)
+    typer.echo(f"ok: {spec.source or scenario} ({spec.family})")
+
+
+@app.command("check")
+def check_command(scenario: ScenarioArgument) -> None:
+    """Report which of its paper's checkable conditions a scenario meets, and what follows."""
+    spec = load_scenario(scenario)
+    family = family_of(spec)
+    typer.echo(f"{spec.source or scenario}: {family.title} ({family.paper})")
+    for guarantee in family.check(spec):
+        typer.echo(guarantee.line())
+
+
+@app.command("search-check", hidden=True)
+def search_check_alias(scenario: ScenarioArgument) -> None:
+    """Earlier spelling of ``check`` for search scenarios."""
+    check_command(scenario)
+
+
+@app.command("flocking-check", hidden=True)
+def flocking_check_alias(scenario: ScenarioArgument) -> None:
+    """Earlier spelling of ``check`` for flocking scenarios."""
+    check_command(scenario)
+
+
+@app.command("scenarios")
+def scenarios_command(
+    family: Annotated[Optional[str], typer.Option(help="Only this family's scenarios.")] = None,
+    sweeps: Annotated[bool, typer.Option("--sweeps", help="List the shipped sweeps instead.")] = False,
+) -> None:
+    """List the shipped scenarios (name, family, description); every command takes these names."""
+    if family is not None and family not in FAMILIES:
+        raise RobofleetError(f"--family: expected one of {sorted(FAMILIES)}, received {family!r}")
+    entries = [e for e in catalogue.list("sweeps" if sweeps else "scenarios") if family is None or e.family == family]
+    width = max((len(e.name) for e in entries), default=0)
+    for entry in entries:
+        typer.echo(f"{entry.name:<{width}}  {entry.family:<12}  {entry.description}")
+
+
+@app.command("sweep")
+def sweep_command(
+    sweep: Annotated[str, typer.Argument(help="Sweep: a YAML file (scenario × grid × seeds) or a shipped name (see `robofleet scenarios --sweeps`).")],
+    out: Annotated[Optional[Path], typer.Option(help="Result store directory (default: the sweep's out, else results/<sweep>).")] = None,
+    executor: ExecutorOption = "process",
+    scheduler: SchedulerOption = None,
+    workers: WorkersOption = None,
+    quiet: QuietOption = False,
+) -> None:
+    """Run a sweep, resuming from its result store; print the means per parameter combination."""
+    frame = run_sweep(sweep, executor=executor, scheduler=scheduler, progress=not quiet, workers=workers, out=out)
+    failed = int(frame["error"].notna().sum())
+    typer.echo(f"results: {frame.attrs['store']}/ ({frame['run_id'].nunique()} runs, {failed} failed)")
+    if frame.attrs.get("other_rows"):
+        typer.echo(f"note: the store also holds {frame.attrs['other_rows']} rows of other sweeps (not shown)")
+    if not quiet:
+        print_means(frame)
+    if failed:
+        first = frame.loc[frame["error"].notna(), ["run_id", "error"]].iloc[0]
+        typer.echo(f"first failure: run {first['run_id']}: {first['error']}")
+
+
+def print_means(frame) -> None:
+    """The sweep's means per grid combination, the headline columns first."""
+    means = summarize_sweep(frame)
+    leading = list(means.columns[: len(frame.attrs["grid"]) + 2])
+    values = [c for c in means.columns if c not in leading]
+    values = [c for c in PREFERRED_COLUMNS if c in values] + [c for c in values if c not in PREFERRED_COLUMNS]
+    console = Console()
+    fits = max(MIN_TABLE_COLUMNS, console.width // COLUMN_WIDTH - len(leading))
+    console.print(frame_table(means[leading + values], "means per parameter combination", leading=len(leading), values=fits))
+
+
+REPRODUCE_HELP = "Reproduce a paper's experiment: sweeps, summary.csv, table.md and figures. NAME is one of: " + "; ".join(
+    f"{r.name} ({r.paper})" for r in REPRODUCTIONS.values())
+
+
+@app.command("reproduce", help=REPRODUCE_HELP)
+def reproduce_command(
+    name: Annotated[str, typer.Argument(help="The experiment: " + ", ".join(REPRODUCTIONS) + ".")],
+    out: OutOption = None,
+    seeds: Annotated[Optional[int], typer.Option(min=1, help="Seeds per grid point (overrides the budget's).")] = None,
+    budget: Annotated[str, typer.Option(help="How much to run: smallest (a smoke run), default, or full (the paper's size).")] = "default",
+    executor: ExecutorOption = "process",
+    scheduler: SchedulerOption = None,
+    workers: WorkersOption = None,
+    quiet: QuietOption = False,
+) -> None:
+    if name not in REPRODUCTIONS:
+        raise RobofleetError(f"reproduce: NAME: expected one of {sorted(REPRODUCTIONS)}, received {name!r}")
+    declaration = REPRODUCTIONS[name]
+    out_dir = out if out is not None else Path("results") / name
+    result = run_reproduction(declaration, out_dir, budget=budget, seeds=seeds, executor=executor, scheduler=scheduler,
+                              workers=workers, progress=not quiet)
+    if not quiet:
+        typer.echo(result.markdown)
+    failed = f"; {result.failed} failed runs (their errors are in the runs store)" if result.failed else ""
+    typer.echo(f"wrote {out_dir}/ {{runs/, {', '.join(p.name for p in result.files)}}}{failed}")
 
 
 def main(argv: list[str] | None = None) -> None:

@@ -31,8 +31,8 @@ ALIASES = {  # names of the files' earlier home, kept working
 
 @dataclass(frozen=True)
 class Entry:
-    """One shipped file: its ``name``, ``family`` (``"sweep"`` for sweeps), the first line
-    of its leading comment as ``description``, and its ``path``."""
+    """One shipped file: its ``name``, ``family`` (``"sweep"`` for sweeps), the first
+    sentence of its leading comment as ``description``, and its ``path``."""
 
     name: str
     family: str
@@ -49,10 +49,14 @@ def folder(kind: str) -> Path:
 
 
 def list(kind: str = "scenarios") -> builtins.list[Entry]:  # noqa: A001 - the documented name
-    """Every shipped scenario (or, with ``kind="sweeps"``, sweep), sorted by name."""
+    """Every shipped scenario (or, with ``kind="sweeps"``, sweep), sorted by name.
+
+    A scenario file is one with a top-level ``family:`` key (other YAML files below the
+    folder, such as flocking pattern files, are data a scenario refers to).
+    """
     root = folder(kind)
     entries = [describe(path, root, kind) for path in sorted(root.rglob(f"*{SUFFIX}"))]
-    return sorted(entries, key=lambda e: e.name)
+    return sorted((e for e in entries if e.family), key=lambda e: e.name)
 
 
 def names(kind: str = "scenarios") -> builtins.list[str]:
@@ -95,11 +99,36 @@ def describe(file: Path, root: Path, kind: str) -> Entry:
     """The catalogue entry of one shipped file."""
     name = file.relative_to(root).with_suffix("").as_posix()
     text = file.read_text()
-    lines = [ln[1:].strip() for ln in text.splitlines() if ln.startswith("#")]
-    description = lines[0] if lines else ""
+    description = first_sentence(leading_comment(text))
     if kind == "sweeps":
         family = "sweep"
     else:
-        data = yaml.safe_load(text) or {}
-        family = str(data.get("family", "avoidance")) if isinstance(data, dict) else "?"
+        data = yaml.safe_load(text)
+        family = str(data["family"]) if isinstance(data, dict) and "family" in data else ""
     return Entry(name, family, description, file)
+
+
+def leading_comment(text: str) -> str:
+    """The comment block at the top of a YAML file, as one line."""
+    lines = []
+    for line in text.splitlines():
+        if not line.startswith("#"):
+            break
+        lines.append(line[1:].strip())
+    return " ".join(part for part in lines if part)
+
+
+ABBREVIATIONS = ("Fig", "Figs", "Sec", "Eq", "e.g", "i.e", "vs", "cf", "al")
+DESCRIPTION_LENGTH = 110
+
+
+def first_sentence(text: str, limit: int = DESCRIPTION_LENGTH) -> str:
+    """``text`` up to the end of its first sentence (a period and a space, not after an
+    abbreviation such as "Fig."), cut to ``limit`` characters."""
+    words, out = text.split(" "), []
+    for word in words:
+        out.append(word)
+        if word.endswith(".") and word.lstrip("(").rstrip(".") not in ABBREVIATIONS:
+            break
+    sentence = " ".join(out)
+    return sentence if len(sentence) <= limit else sentence[: limit - 1].rstrip() + "…"
