@@ -4,8 +4,11 @@ Robots sit on a circle whose radius grows with N so the spacing stays 4 r_s (nei
 found with a k-d tree, no O(N²) loop). Prints time per step and robot-steps per second
 over the first ``--steps`` steps (the whole team's cell construction + projection +
 control, as measured inside the simulation loop), and the growth factor between sizes
-(N log N growth would give ×11.5 from 1k to 10k and ×5.9 from 10k to 50k), and the
-whole loop's time per step including the noise draws and the recording of the trace.
+(N log N growth would give ×11.5 from 1k to 10k and ×5.9 from 10k to 50k), the whole
+loop's time per step including the noise draws and the recording of the arrays
+(``trace.metadata["loop_seconds"]``), and the whole ``simulate`` call per step, which
+adds the set-up and the per-run results of :mod:`robofleet.avoidance.metrics` (pair
+contacts on every recorded state).
 
 Run: ``python benchmarks/avoidance_scale.py [--sizes 100 1000 10000] [--steps 30]``
 """
@@ -34,14 +37,16 @@ def circle_mapping(n: int, steps: int, method: str = "buavc") -> dict:
     }
 
 
-def measure(n: int, steps: int, method: str) -> tuple[float, float]:
-    """Median algorithm time per step (cells + controller of the whole team) and the
-    whole loop's wall time per step (noise draws and recording included)."""
+def measure(n: int, steps: int, method: str) -> tuple[float, float, float]:
+    """Median algorithm time per step (cells + controller of the whole team), the whole
+    loop's wall time per step (noise draws and recording included) and the whole
+    ``simulate`` call's time per step (set-up and per-run results included)."""
     spec = robofleet.load_scenario(circle_mapping(n, steps, method))
     t0 = time.perf_counter()
     trace = robofleet.simulate(spec, seed=0)
-    wall = (time.perf_counter() - t0) / len(trace.arrays["step_seconds"])
-    return float(np.median(trace.arrays["step_seconds"])), wall
+    taken = len(trace.arrays["step_seconds"])
+    run = (time.perf_counter() - t0) / taken
+    return float(np.median(trace.arrays["step_seconds"])), trace.metadata["loop_seconds"] / taken, run
 
 
 def main() -> None:
@@ -51,12 +56,12 @@ def main() -> None:
     ap.add_argument("--method", default="buavc")
     args = ap.parse_args()
     print(f"machine: {platform.machine()} {platform.processor() or ''} · python {platform.python_version()} · numpy {np.__version__}")
-    print(f"{'robots':>8} {'ms/step':>10} {'robot-steps/s':>15} {'growth':>8} {'loop ms/step':>13}")
+    print(f"{'robots':>8} {'ms/step':>10} {'robot-steps/s':>15} {'growth':>8} {'loop ms/step':>13} {'run ms/step':>12}")
     prev = None
     for n in args.sizes:
-        sec, wall = measure(n, args.steps, args.method)
+        sec, loop, run = measure(n, args.steps, args.method)
         growth = f"×{sec / prev:.1f}" if prev else ""
-        print(f"{n:>8} {sec * 1e3:>10.2f} {n / sec:>15,.0f} {growth:>8} {wall * 1e3:>13.2f}")
+        print(f"{n:>8} {sec * 1e3:>10.2f} {n / sec:>15,.0f} {growth:>8} {loop * 1e3:>13.2f} {run * 1e3:>12.2f}")
         prev = sec
     print(f"peak RSS: {resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20:.2f} GiB")
 

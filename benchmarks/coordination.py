@@ -5,7 +5,8 @@
 2. Time per flip test: incremental cycle test (Pearce–Kelly) vs the full rebuild of the
    active subgraph (edge arrays + strongly connected components), and vs rebuilding the
    segment graph from scratch as the authors' release did; at 100 robots. Target ≥ 20×.
-3. Whole-experiment wall time: the Fig. 6 task for each robot count (serial, one instance).
+3. Whole-experiment wall time: one Fig. 6 instance (six variants through ``simulate``) per robot
+   count, serial, with the per-process plan cache and with planning repeated for every run.
 
 Run:  .venv/bin/python benchmarks/coordination.py [--quick]
 """
@@ -16,12 +17,16 @@ import argparse
 import time
 
 import numpy as np
+from scipy.spatial import cKDTree
 
+from robofleet import load_scenario, simulate
 from robofleet.coordination.coordination_space import build_coordination_space, obstacle_grid
+from robofleet.coordination.instance import planned_instance
 from robofleet.coordination.label_flipping import KnownProbabilities
+from robofleet.coordination.plan_execution import ALL_VARIANTS, Method, PlanExecutor, Variant
 from robofleet.coordination.segment_graph import IncrementalCycleDetector, build_segment_layout, has_cycle_full
-from robofleet.coordination.simulation import PlanExecutor, Method, Variant
 from robofleet.coordination.trajectories import make_trajectories
+from robofleet.core.rng import spawn_seeds
 
 RADIUS, STEP = 15.0, 5.0
 
@@ -35,8 +40,6 @@ def synthetic_plan(n: int, rng: np.random.Generator, waypoints: int = 5, collisi
     construction), each robot delayed by the smallest delay that avoids all earlier robots —
     computed exactly from the close point pairs (k-d trees), not by trial.
     """
-    from scipy.spatial import cKDTree
-
     side = 2500.0 * np.sqrt(n / 20)
     if not collision_free:
         paths = []
@@ -133,21 +136,31 @@ def bench_flip_tests(n, rng, max_steps):
     print(f"| full: rebuild the segment graph + SCC pass (release) | {rebuild:.3f} | {rebuild / inc:.0f}× |")
 
 
-def bench_experiment(counts):
-    from robofleet.coordination.reproduce import make_tasks, run_instance
-
-    print("\n## whole experiment (one Fig. 6 task = plan + coordination space + six variants), serial")
-    print("| robots | wall time per instance [s] | planning [s] | six executions [s] |")
-    print("|---:|---:|---:|---:|")
-    total = 0.0
+def bench_experiment(counts, root_seed: int = 11):
+    """One Fig. 6 instance per robot count: the six variants through ``simulate``, planning
+    the instance once (the per-process plan cache) and six times (cache cleared before each run)."""
+    print("\n## whole experiment (one Fig. 6 instance = six variants through simulate), serial")
+    print("| robots | planning [s] | six runs, plan cached [s] | six runs, planned each time [s] | cache speed-up |")
+    print("|---:|---:|---:|---:|---:|")
+    seed = spawn_seeds(root_seed, 1)[0]
+    totals = [0.0, 0.0]
     for n in counts:
-        task = make_tasks([n], 1, root_seed=11)[0]
-        t0 = time.perf_counter()
-        rows = run_instance(task)
-        wall = time.perf_counter() - t0
-        total += wall
-        print(f"| {n} | {wall:.1f} | {rows[0]['plan_seconds']:.1f} | {sum(r['run_seconds'] for r in rows):.1f} |")
-    print(f"\none instance of every count: {total:.1f} s → 10 instances ≈ {10 * total / 60:.1f} CPU-minutes")
+        specs = [load_scenario("coordination/x_corridor_20", {"robots.count": n, "robots.instance_seed": None,
+                                                              "policy.method": v.method.value, "policy.deadlock_check": v.deadlock_check})
+                 for v in ALL_VARIANTS]
+        walls = []
+        for clear_each in (False, True):
+            planned_instance.cache_clear()
+            t0 = time.perf_counter()
+            for spec in specs:
+                if clear_each:
+                    planned_instance.cache_clear()
+                trace = simulate(spec, seed=seed)
+            walls.append(time.perf_counter() - t0)
+        totals = [t + w for t, w in zip(totals, walls)]
+        print(f"| {n} | {trace.results['plan_seconds']:.2f} | {walls[0]:.2f} | {walls[1]:.2f} | {walls[1] / walls[0]:.1f}× |")
+    print(f"\none instance of every count: {totals[0]:.1f} s cached, {totals[1]:.1f} s uncached → "
+          f"10 instances ≈ {10 * totals[0] / 60:.1f} CPU-minutes cached ({10 * totals[1] / 60:.1f} uncached)")
 
 
 def main():

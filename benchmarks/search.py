@@ -1,10 +1,12 @@
 """Throughput of the grid search (paper 002) on the Fig. 7 area, per algorithm.
 
-Prints runs per second on one core (no store) for 1, 5 and 13 robots and each algorithm,
-run one at a time (``run_search``) and as lockstep batches of ``--batch`` runs
-(``run_search_batch``, what the Fig. 7 tasks do), the speed-up of batching, and, with
-``--full-estimate``, the projected single-core time of the 26,000-run Fig. 7 sweep
-(500 runs × 13 robot counts × 4 algorithms) from batched runs of every robot count.
+Prints runs per second on one core (no store) for 1, 5 and 13 robots and each algorithm:
+``run_search`` alone (no arrays recorded), ``simulate`` (the recorded run of the family
+contract), one sweep task (``load_scenario`` of the shipped file with the grid's overrides,
+then ``simulate`` and ``summary``: what every run of the Fig. 7 sweep does, store writes
+aside) and lockstep batches of ``--batch`` runs (``run_search_batch``). With
+``--full-estimate`` it projects the single-core time of the 26,000-run Fig. 7 sweep
+(500 runs × 13 robot counts × 4 algorithms) from sweep tasks of every robot count.
 
     python benchmarks/search.py [--runs 25] [--batch 25] [--full-estimate]
 """
@@ -15,25 +17,31 @@ import argparse
 import platform
 import time
 
-from robofleet import load_scenario
-from robofleet.scenarios import shipped_scenario
-from robofleet.search.reproduce import FIG7_ALGORITHMS, FIG7_ROBOTS, run_seeds
-from robofleet.search.scenario import build_problem
-from robofleet.search.simulation import LABELS, run_search, run_search_batch
+from robofleet import load_scenario, simulate
+from robofleet.core.rng import spawn_seeds
+from robofleet.experiments.reproductions.search import FIG7_ALGORITHMS
+from robofleet.experiments.sweep import simulate_task
+from robofleet.scenarios import path as scenario_path
+from robofleet.search.simulation import LABELS, build_problem, run_search, run_search_batch
+
+FIG7 = "search/fig7"
+FIG7_ROBOTS = tuple(range(1, 14))
+GRID_KEYS = ("algorithm", "robots.count")
 
 
-def measure(algorithm, n_robots: int, runs: int, batch: int) -> tuple[float, float, float]:
-    """(seconds per run alone, seconds per run in batches, mean simulated steps per run)."""
-    spec = load_scenario(shipped_scenario("search", "fig7.yaml"), {"robots.count": n_robots, "algorithm": algorithm.value,
-                                                         "require_guarantee": False})
-    run_search(build_problem(spec, 0), algorithm, 0)  # warm caches (grid, sensing tables)
-    seeds = run_seeds(99, 0, runs)
-    steps = 0
+def per_run(fn, seeds: list[int]) -> float:
+    """Seconds per call of ``fn(seed)`` over ``seeds``."""
     start = time.perf_counter()
     for seed in seeds:
-        steps += run_search(build_problem(spec, seed), algorithm, seed).results["n_steps"]
-    alone = (time.perf_counter() - start) / runs
-    return alone, measure_batched(spec, algorithm, seeds, batch), steps / runs
+        fn(seed)
+    return (time.perf_counter() - start) / len(seeds)
+
+
+def sweep_task_seconds(algorithm, n_robots: int, seeds: list[int]) -> float:
+    """Seconds per Fig. 7 sweep task (:func:`robofleet.experiments.sweep.simulate_task`)."""
+    scenario = str(scenario_path(FIG7))
+    return per_run(lambda s: simulate_task({"seed": s, "algorithm": algorithm.value, "robots.count": n_robots},
+                                           scenario=scenario, fixed={}, grid_keys=GRID_KEYS, metrics=None), seeds)
 
 
 def measure_batched(spec, algorithm, seeds: list[int], batch: int) -> float:
@@ -45,6 +53,21 @@ def measure_batched(spec, algorithm, seeds: list[int], batch: int) -> float:
     return (time.perf_counter() - start) / len(seeds)
 
 
+def measure(algorithm, n_robots: int, runs: int, batch: int) -> dict[str, float]:
+    """Seconds per run alone, recorded, as a sweep task and batched; mean steps per run."""
+    spec = load_scenario(FIG7, {"robots.count": n_robots, "algorithm": algorithm.value})
+    run_search(build_problem(spec, 0), algorithm, 0)  # warm caches (grid, sensing tables, coverage probe)
+    seeds = spawn_seeds(99, runs)
+    steps = [run_search(build_problem(spec, s), algorithm, s).steps for s in seeds]
+    return {
+        "steps": sum(steps) / runs,
+        "alone": per_run(lambda s: run_search(build_problem(spec, s), algorithm, s), seeds),
+        "recorded": per_run(lambda s: simulate(spec, seed=s), seeds),
+        "task": sweep_task_seconds(algorithm, n_robots, seeds),
+        "batched": measure_batched(spec, algorithm, seeds, batch),
+    }
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--runs", type=int, default=25)
@@ -52,18 +75,16 @@ def main() -> None:
     parser.add_argument("--full-estimate", action="store_true", help="time every robot count 1..13 to project the sweep")
     args = parser.parse_args()
     print(f"python {platform.python_version()}, {platform.machine()}; {args.runs} runs per point, batches of {args.batch}")
-    print(f"{'algorithm':<12} {'robots':>6} {'steps/run':>10} {'runs/s alone':>13} {'runs/s batched':>15} {'speed-up':>9}")
+    print(f"{'algorithm':<12} {'robots':>6} {'steps/run':>10} {'alone/s':>8} {'simulate/s':>11} {'tasks/s':>8} {'batched/s':>10}")
     for alg in FIG7_ALGORITHMS:
         for n in (1, 5, 13):
-            alone, batched, steps = measure(alg, n, args.runs, args.batch)
-            print(f"{LABELS[alg]:<12} {n:>6} {steps:>10.1f} {1 / alone:>13.1f} {1 / batched:>15.1f} {alone / batched:>8.1f}x")
+            m = measure(alg, n, args.runs, args.batch)
+            print(f"{LABELS[alg]:<12} {n:>6} {m['steps']:>10.1f} {1 / m['alone']:>8.1f} {1 / m['recorded']:>11.1f} "
+                  f"{1 / m['task']:>8.1f} {1 / m['batched']:>10.1f}")
     if args.full_estimate:
-        total = 0.0
-        for alg in FIG7_ALGORITHMS:
-            for n in FIG7_ROBOTS:
-                spec = load_scenario(shipped_scenario("search", "fig7.yaml"), {"robots.count": n, "algorithm": alg.value})
-                total += measure_batched(spec, alg, run_seeds(99, 0, args.runs), args.batch) * 500
-        print(f"projected Fig. 7 sweep (26,000 runs, batched): {total:.0f} s on one core, ~{total / 2:.0f} s on two workers")
+        total = sum(sweep_task_seconds(alg, n, spawn_seeds(99, args.runs)) * 500 for alg in FIG7_ALGORITHMS for n in FIG7_ROBOTS)
+        print(f"projected Fig. 7 sweep (26,000 sweep tasks, store writes aside): {total:.0f} s on one core, "
+              f"~{total / 2:.0f} s on two workers")
 
 
 if __name__ == "__main__":

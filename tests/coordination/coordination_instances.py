@@ -7,7 +7,7 @@ import numpy as np
 from robofleet.core.errors import InfeasibleError
 from robofleet.coordination.coordination_space import build_coordination_space
 from robofleet.coordination.segment_graph import IncrementalCycleDetector, build_segment_layout
-from robofleet.coordination.theory import check_theory
+from robofleet.coordination.guarantees import check_theory
 from robofleet.coordination.trajectories import make_trajectories
 
 

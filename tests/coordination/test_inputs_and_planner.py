@@ -14,7 +14,7 @@ from robofleet.core.workspace import Workspace
 from robofleet.coordination.coordination_space import build_coordination_space
 from robofleet.coordination.maps import x_corridor_workspace
 from robofleet.coordination.planner import PlannerSettings, plan_prioritized
-from robofleet.coordination.theory import check_theory, conflicts
+from robofleet.coordination.guarantees import check_theory, conflicts
 from robofleet.coordination.trajectories import load_trajectories, make_trajectories, save_trajectories
 
 SETTINGS = PlannerSettings(radius=15.0, speed=50.0, dt=0.1)

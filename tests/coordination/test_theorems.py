@@ -13,7 +13,7 @@ from robofleet.coordination.label_flipping import KnownProbabilities
 from robofleet.coordination.segment_graph import (
     IncrementalCycleDetector, Resolution, build_segment_layout, find_cycle_nodes, has_cycle_full,
 )
-from robofleet.coordination.simulation import PlanExecutor, Method, Variant
+from robofleet.coordination.plan_execution import PlanExecutor, Method, Variant
 
 SEEDS = st.integers(0, 2**32 - 1)
 
@@ -191,9 +191,9 @@ def test_incremental_comparison_is_exercised():
 
 def test_theorem4_needs_flips_at_the_entrance():
     """Three robots circling a triangle of crossings: disjoint collision segments, yet a
-    label assignment that no entrance flip can produce closes a cycle (see theory.py)."""
+    label assignment that no entrance flip can produce closes a cycle (see guarantees.py)."""
     from coordination_instances import line
-    from robofleet.coordination.theory import check_theory
+    from robofleet.coordination.guarantees import check_theory
     from robofleet.coordination.trajectories import make_trajectories
 
     a, b, c = np.array([0.0, 0.0]), np.array([20.0, 0.0]), np.array([10.0, 17.0])

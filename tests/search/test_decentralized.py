@@ -9,8 +9,7 @@ from hypothesis import strategies as st
 from robofleet.search.decentralized import SequentialPolicy, choice_rounds
 from robofleet.search.knowledge import RobotMaps
 from robofleet.search.policy import RobotStreams, StepContext
-from robofleet.search.scenario import build_problem
-from robofleet.search.simulation import run_search
+from robofleet.search.simulation import build_problem, run_search
 
 from .helpers import small_spec
 

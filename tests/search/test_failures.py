@@ -21,7 +21,7 @@ def test_others_finish_and_never_touch_the_failed_robot(seed, fail_step):
     failures = [e for e in trace.events if e["kind"] == "failure"]
     assert failures == [] or failures[0]["robot"] == 1
     if not failures:  # the search ended before the failure step
-        assert trace.results["n_steps"] <= fail_step
+        assert trace.metadata["n_steps"] <= fail_step
         return
     k = failures[0]["step"]
     dead = verts[k, 1]
@@ -43,7 +43,7 @@ def test_failure_is_detected_by_neighbours():
     for seed in range(8):
         trace = simulate(spec, seed=seed)
         kinds = [e["kind"] for e in trace.events]
-        if "failure" in kinds and trace.results["n_steps"] > 10:
+        if "failure" in kinds and trace.metadata["n_steps"] > 10:
             detected += "failure_detected" in kinds
     assert detected > 0
 

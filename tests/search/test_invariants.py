@@ -17,6 +17,7 @@ from hypothesis import strategies as st
 from scipy.spatial import cKDTree
 
 from robofleet import load_scenario, simulate
+from robofleet.search.simulation import build_problem, run_search_batch
 
 from .helpers import TABLE1, check_step_invariants, small_spec
 
@@ -137,12 +138,8 @@ def test_stop_rule4_never_fires_early_on_any_grid():
     neighbourhood (a choice received by broadcast): on every grid, a completed situation-2
     search has visited every reachable accessible vertex. (The sparse hexagonal grid exposed
     an early stop in 3 of 60 runs of a rule that only looked at discovered vertices.)"""
-    from robofleet.scenarios import shipped_scenario
-    from robofleet.search.scenario import build_problem
-    from robofleet.search.simulation import run_search_batch
-
     for kind in ("hexagonal", "square", "triangular"):
-        spec = load_scenario(shipped_scenario("search", "fig7.yaml"), {"robots.count": 5, "situation": 2, "grid.kind": kind,
+        spec = load_scenario("search/fig7", {"robots.count": 5, "situation": 2, "grid.kind": kind,
                                                              "require_guarantee": False})
         seeds = list(range(60))
         outcomes = run_search_batch([build_problem(spec, s) for s in seeds], "proposed", seeds)

@@ -7,8 +7,9 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
+from robofleet.core.spec_blocks import rounded_rectangle
 from robofleet.core.workspace import Workspace
-from robofleet.search.assumptions import check_assumptions, max_boundary_turn, narrowest_passage
+from robofleet.search.guarantees import check_assumptions, max_boundary_turn, narrowest_passage
 from robofleet.search.timing import MotionTiming, trapezoid_time
 
 
@@ -40,8 +41,6 @@ TABLE1 = dict(a=1.0, r_rob=0.26, r_safe=0.31, r_so=1.31, r_st=1.31, r_c=2.05)
 
 
 def rounded_box_area():
-    from robofleet.search.scenario import rounded_rectangle
-
     return Workspace(rounded_rectangle((0, 0, 10, 8), 1.5), (np.array([[4.0, 3.0], [6.0, 3.0], [6.0, 5.0], [4.0, 5.0]]),))
 
 
@@ -77,6 +76,4 @@ def test_narrow_passage_and_sharp_pocket():
 
 
 def rounded_rectangle_bounds():
-    from robofleet.search.scenario import rounded_rectangle
-
     return rounded_rectangle((0, 0, 10, 8), 1.5)

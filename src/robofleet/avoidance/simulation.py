@@ -1,143 +1,134 @@
-"""The closed loop of paper 003 for single-integrator robots.
+"""The closed loop of paper 003 for every robot model and team: spec → world → steps → Trace.
 
-Every step (notes/buavc.md "Noise"): each robot's estimate is its TRUE position plus a
-draw from ``N(0, Σ)``, and each obstacle's estimated position is its true position plus a
-draw from ``N(0, Σ_o)``; every robot builds its cell from those estimates, steers with the
-one-step controller, and the TRUE position moves ``p ← p + u Δt``. Collisions are judged
-on true positions. Methods share this code path and differ only in what the cell uses:
+Every step (notes/buavc.md "Noise"): each robot's position estimate is its TRUE position
+plus a draw from ``N(0, Σ)`` (velocities, headings and attitudes are measured exactly),
+and each obstacle's estimated position is its true position plus a draw from
+``N(0, Σ_o)``; every robot builds its cell from those estimates, its team's controller
+picks the input, and the TRUE states move with the team's dynamics. Collisions are
+judged on true positions (:mod:`.metrics`).
 
-* ``buavc``: Σ, Σ_o and the chance buffers (δ);
+Methods share this code path and differ only in what the cells use (:class:`MethodSetup`):
+
+* ``buavc``: Σ, Σ_o and the chance buffers (δ) — the B-UAVC of Sec. 4;
 * ``bvc``: Σ = Σ_o = 0, buffer r_s (Zhou et al. 2017);
-* ``bvc_inflated``: Σ = Σ_o = 0 and radius ``r_s + k σ_max`` (k = ``inflation_sigmas``).
+* ``bvc_inflated``: Σ = Σ_o = 0 and radius ``r_s + k σ_max`` (k = ``inflation_sigmas``);
+* ``orca``: no cells; ORCA velocities (van den Berg et al. 2011) for 2-D single integrators.
+
+Controllers, per team: single integrators — the one-step controller with the deadlock
+heuristic of appendix C (:mod:`.controller`); double integrators — the braking rule
+(Sec. 5.2, :mod:`.braking`); differential-drive robots — three projections (Sec. 5.3,
+:mod:`.diff_drive`); quadrotors, and any model with ``controller: mpc`` — the B-UAVC MPC
+(Sec. 5.4, :mod:`.mpc`).
+
+In a 3-D space every robot's cell is built in R³ from all estimates; ground robots
+(every model but the quadrotor) move in the plane ``z = z_g`` (floor + r_s) and use their
+cell's section with that plane (:func:`ground_section`).
+
+The authors' main setup — one 2-D team of single integrators under the one-step
+controller — is the same loop with one team whose rows are views of the fleet's cells
+(no per-step copies), which keeps the 50,000-robot step of
+``benchmarks/avoidance_scale.py`` as fast as a dedicated loop.
 """
 
 from __future__ import annotations
 
-import time
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from shapely.geometry import Polygon
 
-from ..core.progress import tracked
-from ..core.rng import as_generator
-from ..core.trace import Trace
+from ..core.recorder import Recorder
+from ..core.rng import as_generator, resolve_seed
+from ..core.trace import Trace, to_plain
+from ..dynamics import double_integrator as di
+from ..dynamics import quadrotor as quad
 from ..dynamics import single_integrator
-from .buffer import confidence_quantile, shadow_epsilon
-from .cell import CellGeometry, build_cells
+from ..dynamics import unicycle as uni
+from .braking import braking_control, braking_rule
+from .buffer import buffer, confidence_quantile, shadow_epsilon
+from .cell import CellGeometry, Cells, Kind, build_cells
+from .cell3d import box_shadow_planes, workspace_box_planes
 from .controller import ControllerState, DeadlockParams, single_integrator_control
+from .diff_drive import three_projection_control
+from .metrics import ControllerCounts, run_results
+from .mpc import BuavcMPC, GoalRotation, SingleIntegratorParams
 from .obstacles import ObstacleSet, wall_planes
-from .scenario import Spec, sample_layout
+from .orca import orca_velocities, preferred_velocities
+from .projection import project_onto_cells
+from .spec import Spec, TeamSpec, initial_layout
 
 RECORD_CELLS_MAX_ROBOTS = 64
+"""Cells are recorded by default for fleets up to this size (``record_cells`` overrides)."""
+CONTROL_WIDTH = {"single_integrator": 2, "double_integrator": 2, "unicycle": 2, "quadrotor": 4}
+"""Inputs per model; the ``controls`` array is as wide as the widest team's (zero-padded)."""
 
 
+# ---------------------------------------------------------------------------------------
+# what a method's cells are made of
+# ---------------------------------------------------------------------------------------
 @dataclass(frozen=True)
 class MethodSetup:
-    """What the cells of a method are built from."""
+    """What the cells of a method are built from (see the module docstring).
 
-    robot_cov: np.ndarray      # (2, 2) Σ the cells use (zeros for BVC variants)
-    radius: float              # r_s used in the buffers
-    quantile: float            # Φ⁻¹(√(1 − δ)) (0 for BVC variants)
-    obstacles: ObstacleSet
+    Attributes
+    ----------
+    method: ``buavc``, ``bvc``, ``bvc_inflated`` or ``orca``.
+    quantile: ``Φ⁻¹(√(1 − δ))`` of the chance buffer β (0 without chance constraint).
+    epsilon: ε of the obstacles' ε-shadow, ``1 − √(1 − δ)`` (appendix A).
+    inflation_sigmas: k of the inflated radius ``r_s + k σ_max`` (0 unless ``bvc_inflated``).
+    """
 
-    def obstacle_clearance(self, obstacle_cov: np.ndarray) -> float:
-        """Largest distance the cells keep a robot from a nominal obstacle boundary:
-        r_s + chance buffer + ε-shadow (used to place the detour vertices of appendix C)."""
-        sigma = float(np.sqrt(np.linalg.eigvalsh(self.robot_cov).max()))
-        shadow = float(self.obstacles.shadow_radius.max(initial=0.0)) * float(np.sqrt(np.linalg.eigvalsh(obstacle_cov).max()))
-        return self.radius + self.quantile * sigma + (shadow if np.isfinite(shadow) else 0.0)
+    method: str
+    quantile: float
+    epsilon: float
+    inflation_sigmas: float
+
+    @property
+    def chance_constrained(self) -> bool:
+        """Whether the cells carry the chance constraint (Σ, Σ_o and δ enter them)."""
+        return self.method == "buavc"
+
+    def cell_covariance(self, cov: np.ndarray) -> np.ndarray:
+        """The Σ a cell uses: the estimate's covariance for B-UAVC, zero for the BVC variants."""
+        return cov if self.chance_constrained else np.zeros_like(cov)
+
+    def cell_radius(self, radius: float, sigma: float) -> float:
+        """The safety radius a cell uses: ``r_s``, or ``r_s + k σ_max`` for the inflated BVC."""
+        return radius + self.inflation_sigmas * sigma
 
 
-def method_setup(spec: Spec) -> MethodSetup:
-    """Cell ingredients of ``spec.method`` (see module docstring)."""
-    cov = spec.robots.covariance()
-    polys = [o.polygon() for o in spec.workspace.obstacles]
-    if spec.method == "buavc":
-        obs_cov = np.repeat(spec.workspace.obstacle_covariance()[None], len(polys), 0)
-        eps = shadow_epsilon(spec.delta)
-        return MethodSetup(cov, spec.robots.radius, confidence_quantile(spec.delta), ObstacleSet.build(polys, obs_cov, eps))
-    nominal = ObstacleSet.build(polys, np.zeros((len(polys), 2, 2)), 0.0)
-    radius = spec.robots.radius
-    if spec.method == "bvc_inflated":
-        radius += spec.inflation_sigmas * float(np.sqrt(np.linalg.eigvalsh(cov).max()))
-    return MethodSetup(np.zeros((2, 2)), radius, 0.0, nominal)
+def method_setup(method: str, delta: float, inflation_sigmas: float) -> MethodSetup:
+    """The cell ingredients of ``method`` at threshold ``delta`` (Sec. 4 and appendix A)."""
+    if method == "buavc":
+        return MethodSetup(method, confidence_quantile(delta), shadow_epsilon(delta), 0.0)
+    return MethodSetup(method, 0.0, shadow_epsilon(delta), inflation_sigmas if method == "bvc_inflated" else 0.0)
 
 
-def grown_obstacle_vertices(spec: Spec, margin: float) -> np.ndarray | None:
-    """Vertices ``(O, V, 2)`` of the obstacles grown by ``margin`` (mitred), for appendix C."""
-    polys = [Polygon(o.polygon()).buffer(margin, join_style="mitre") for o in spec.workspace.obstacles]
-    if not polys:
+def obstacle_set(polygons: list[np.ndarray], obstacle_cov: np.ndarray, setup: MethodSetup) -> ObstacleSet:
+    """The 2-D obstacles a method's cells see: with their ε-shadows under Σ_o (appendix A,
+    Lemma 1 and Theorem 1) for B-UAVC, nominal otherwise."""
+    if setup.chance_constrained:
+        return ObstacleSet.build(polygons, np.repeat(obstacle_cov[None], len(polygons), 0), setup.epsilon)
+    return ObstacleSet.build(polygons, np.zeros((len(polygons), 2, 2)), 0.0)
+
+
+def obstacle_clearance(radius: float, sigma: float, quantile: float, obstacles: ObstacleSet, obstacle_cov: np.ndarray) -> float:
+    """Largest distance a cell keeps a robot from a nominal obstacle boundary: r_s + the
+    chance buffer ``Φ⁻¹(√(1 − δ)) σ`` + the ε-shadow ``r_ε σ_o`` (used to place the detour
+    vertices of appendix C)."""
+    shadow = float(obstacles.shadow_radius.max(initial=0.0)) * float(np.sqrt(np.linalg.eigvalsh(obstacle_cov).max()))
+    return radius + quantile * sigma + (shadow if np.isfinite(shadow) else 0.0)
+
+
+def grown_obstacle_vertices(polygons: list[np.ndarray], margin: float) -> np.ndarray | None:
+    """Vertices ``(O, V, 2)`` of the obstacles grown by ``margin`` (mitred, padded by
+    repetition), the detour targets of the obstacle branch of appendix C."""
+    grown = [Polygon(p).buffer(margin, join_style="mitre") for p in polygons]
+    if not grown:
         return None
-    verts = [np.asarray(p.exterior.coords)[:-1] for p in polys]
+    verts = [np.asarray(p.exterior.coords)[:-1] for p in grown]
     v_max = max(len(v) for v in verts)
     return np.stack([np.vstack([v, np.repeat(v[-1:], v_max - len(v), 0)]) for v in verts])
-
-
-def run(spec: Spec, seed=None, progress: bool = False) -> Trace:
-    """Simulate ``spec`` and return its :class:`~robofleet.core.trace.Trace`.
-
-    Arrays: ``positions (T+1, N, 2)`` true positions, ``estimates (T, N, 2)``,
-    ``controls (T, N, 2)``, ``step_seconds (T,)`` (cell + controller time of the whole
-    team), ``arrival_steps (N,)``; ``cell_A``/``cell_b`` ``(T, N, M, ·)`` when cells are
-    recorded (default for N ≤ 64). Same seed → same trace.
-
-    Scenarios with another robot model, MPC, ORCA, a 3D space or teams run in
-    :func:`robofleet.avoidance.models_simulation.run_models` (chosen once, here).
-    """
-    if spec.uses_models:
-        from .models_simulation import run_models
-
-        return run_models(spec, seed=seed, progress=progress)
-    rng = as_generator(seed)
-    n, dt = spec.robots.n, spec.dt
-    starts, goals = sample_layout(spec, rng)
-    setup = method_setup(spec)
-    walls = wall_planes(spec.workspace.bounds_vertices())
-    chol = noise_factor(spec.robots.covariance())
-    obs_chol = noise_factor(spec.workspace.obstacle_covariance())
-    covs = np.broadcast_to(setup.robot_cov, (n, 2, 2))
-    radius = np.full(n, setup.radius)
-    deadlock = DeadlockParams(**spec.deadlock.model_dump())
-    state = ControllerState.initial(n, deadlock.window)
-    grown = grown_obstacle_vertices(spec, 1.05 * setup.obstacle_clearance(spec.workspace.obstacle_covariance()))
-    record_cells = spec.record_cells if spec.record_cells is not None else n <= RECORD_CELLS_MAX_ROBOTS
-
-    pos = np.empty((spec.max_steps + 1, n, 2))
-    est = np.empty((spec.max_steps, n, 2))
-    ctl = np.empty((spec.max_steps, n, 2))
-    seconds = np.empty(spec.max_steps)
-    arrival = np.full(n, -1)
-    cells_log, events = [], []
-    pos[0] = starts
-    steps = 0
-    with tracked(spec.max_steps, f"{spec.method} · {n} robots", enabled=progress) as advance:
-        for k in range(spec.max_steps):
-            est[k] = pos[k] + rng.standard_normal((n, 2)) @ chol.T
-            shift = rng.standard_normal((setup.obstacles.count, 2)) @ obs_chol.T
-            t0 = time.perf_counter()
-            geometry = CellGeometry(_shifted(setup.obstacles, shift), *walls)
-            cells = build_cells(est[k], covs, radius, setup.quantile, geometry, spec.local_box)
-            ctl[k], info = single_integrator_control(
-                est[k], goals, cells, state, v_max=spec.robots.v_max, dt=dt,
-                goal_tolerance=spec.goal_tolerance, deadlock=deadlock, grown_obstacles=grown,
-            )
-            seconds[k] = time.perf_counter() - t0
-            pos[k + 1] = single_integrator.step(pos[k], ctl[k], dt)
-            _log_events(k, info, state, arrival, events)
-            if record_cells:
-                cells_log.append((cells.A, cells.b))
-            steps = k + 1
-            advance()
-            if state.arrived.all():
-                break
-    arrays = {
-        "positions": pos[: steps + 1], "estimates": est[:steps], "controls": ctl[:steps],
-        "step_seconds": seconds[:steps], "arrival_steps": arrival,
-    }
-    if record_cells:
-        arrays.update(_pad_cells(cells_log))
-    return _trace(spec, seed, arrays, events, starts, goals, state)
 
 
 def noise_factor(cov: np.ndarray) -> np.ndarray:
@@ -151,42 +142,508 @@ def noise_factor(cov: np.ndarray) -> np.ndarray:
         return v * np.sqrt(np.maximum(w, 0.0))
 
 
-def _trace(spec: Spec, seed, arrays, events, starts, goals, state: ControllerState) -> Trace:
-    metadata = {
-        "scenario": spec.name, "method": spec.method, "seed": _seed_repr(seed), "dt": spec.dt,
-        "radius": spec.robots.radius, "goals": goals, "starts": starts, "goal_tolerance": spec.goal_tolerance,
-        "delta": spec.delta, "robot_cov": spec.robots.covariance(), "n_robots": spec.robots.n, "v_max": spec.robots.v_max,
-    }
-    results = {"deadlock_detections": int(state.deadlocks.sum()), "empty_cell_steps": int(sum(e["kind"] == "empty_cell" for e in events))}
-    return Trace("avoidance", arrays, events, metadata, results, spec.workspace.build())
+def team_noise_factor(team: TeamSpec, dim: int) -> np.ndarray:
+    """``L`` with ``L Lᵀ`` = :func:`team_covariance` (3-D: ``σ diag(1, 1, 1 or 0)`` exactly)."""
+    if dim == 2:
+        return noise_factor(team.covariance())
+    return team.sigma * np.diag([1.0, 1.0, 1.0 if team.flying else 0.0])
 
 
-def _shifted(obstacles: ObstacleSet, shift: np.ndarray) -> ObstacleSet:
+def team_covariance(team: TeamSpec, dim: int) -> np.ndarray:
+    """The ``(dim, dim)`` covariance of a team's position estimates: Σ in 2-D; in 3-D
+    ``σ² I`` for quadrotors and ``σ² diag(1, 1, 0)`` for ground robots (no z noise)."""
+    if dim == 2:
+        return team.covariance()
+    return team.sigma**2 * np.diag([1.0, 1.0, 1.0 if team.flying else 0.0])
+
+
+# ---------------------------------------------------------------------------------------
+# the cells of the whole fleet
+# ---------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class BoxObstacles:
+    """3-D box obstacles (yawed about z) with uncertain position ``N(0, cov)`` and the ε of their shadows."""
+
+    centers: np.ndarray
+    sizes: np.ndarray
+    yaws: np.ndarray
+    cov: np.ndarray
+    epsilon: float
+
+    @property
+    def count(self) -> int:
+        return len(self.centers)
+
+
+@dataclass(frozen=True)
+class CellModel:
+    """What every robot's B-UAVC is built from (Sec. 4): each estimate's covariance Σ_i
+    and safety radius, the buffer quantile, the walls and the obstacles with their
+    shadows (2-D polygons in ``geometry``, 3-D boxes in ``boxes``), the local box R_loc."""
+
+    covs: np.ndarray
+    radius: np.ndarray
+    quantile: float
+    geometry: CellGeometry
+    local_box: float
+    boxes: BoxObstacles | None = None
+
+    def cells(self, estimates: np.ndarray, obstacle_shift: np.ndarray) -> Cells:
+        """The cells of all robots from their estimates ``(N, d)`` and the obstacles'
+        estimated displacements ``(O, d)``."""
+        if self.boxes is None:
+            geometry = replace(self.geometry, obstacles=shifted(self.geometry.obstacles, obstacle_shift))
+            return build_cells(estimates, self.covs, self.radius, self.quantile, geometry, self.local_box)
+        cells = build_cells(estimates, self.covs, self.radius, self.quantile, self.geometry, self.local_box)
+        return cells if self.boxes.count == 0 else self.with_box_rows(cells, estimates, obstacle_shift)
+
+    def with_box_rows(self, cells: Cells, estimates: np.ndarray, shift: np.ndarray) -> Cells:
+        """``cells`` plus one row per box inside each robot's local box: the max-margin plane
+        to the box's ε-shadow (appendix A), tightened by the robot's buffer β."""
+        boxes = self.boxes
+        centers = boxes.centers + shift
+        a, b = box_shadow_planes(estimates, centers, boxes.sizes, boxes.yaws, boxes.cov, boxes.epsilon)
+        b = b - buffer(a, self.covs[:, None], self.radius[:, None], self.quantile)
+        reach = 0.5 * np.linalg.norm(boxes.sizes, axis=1)
+        near = np.all(np.abs(estimates[:, None] - centers[None]) <= self.local_box + reach[None, :, None], axis=-1)
+        return Cells(np.concatenate([cells.A, a], 1), np.concatenate([cells.b, np.where(near, b, 1.0)], 1),
+                     np.concatenate([cells.valid, near], 1),
+                     np.concatenate([cells.kind, np.full(near.shape, int(Kind.OBSTACLE), np.int8)], 1),
+                     np.concatenate([cells.source, np.broadcast_to(np.arange(boxes.count), near.shape)], 1))
+
+
+def shifted(obstacles: ObstacleSet, shift: np.ndarray) -> ObstacleSet:
+    """The obstacle set displaced by ``shift`` ``(O, d)`` (the obstacles' position estimates)."""
     if obstacles.count == 0:
         return obstacles
     return replace(obstacles, vertices=obstacles.vertices + shift[:, None], lo=obstacles.lo + shift, hi=obstacles.hi + shift)
 
 
-def _log_events(k, info, state, arrival, events):
-    newly = state.arrived & (arrival < 0)
-    arrival[newly] = k + 1
-    for r in np.flatnonzero(newly):
-        events.append({"step": k + 1, "kind": "arrived", "robot": int(r)})
-    for r in np.flatnonzero(info["deadlocked"]):
-        events.append({"step": k, "kind": "deadlock", "robot": int(r)})
-    for r in np.flatnonzero(info["empty"] & ~state.arrived):
-        events.append({"step": k, "kind": "empty_cell", "robot": int(r)})
+def cell_model(spec: Spec, setup: MethodSetup) -> CellModel:
+    """The :class:`CellModel` of a scenario under a method (one team: a broadcast Σ, so
+    the separators take the shared-covariance closed form)."""
+    teams, slices, dim = spec.team_specs(), spec.team_slices(), spec.dim
+    n = slices[-1].stop
+    if len(teams) == 1:
+        covs = np.broadcast_to(setup.cell_covariance(team_covariance(teams[0], dim)), (n, dim, dim))
+    else:
+        covs = np.empty((n, dim, dim))
+        for team, sl in zip(teams, slices):
+            covs[sl] = setup.cell_covariance(team_covariance(team, dim))
+    radius = np.empty(n)
+    for team, sl in zip(teams, slices):
+        radius[sl] = setup.cell_radius(spec.robots.radius, team.largest_sigma())
+    if spec.space3d is None:
+        ws = spec.workspace
+        geometry = CellGeometry(obstacle_set(ws.obstacle_polygons(), ws.obstacle_covariance(), setup), *wall_planes(ws.bounds_vertices()))
+        return CellModel(covs, radius, setup.quantile, geometry, spec.local_box)
+    space = spec.space3d
+    no_polygons = ObstacleSet(np.zeros((0, 1, 3)), np.zeros((0, 3, 3)), np.zeros(0), np.zeros((0, 3)), np.zeros((0, 3)))
+    geometry = CellGeometry(no_polygons, *workspace_box_planes(space.lower, space.upper))
+    box_cov = setup.cell_covariance(space.obstacle_sigma**2 * np.eye(3))
+    boxes = BoxObstacles(*space.box_arrays(), box_cov, setup.epsilon)
+    return CellModel(covs, radius, setup.quantile, geometry, spec.local_box, boxes)
 
 
-def _pad_cells(log):
+def team_rows(cells: Cells, index: slice) -> Cells:
+    """One team's cells (views, no copy)."""
+    return Cells(cells.A[index], cells.b[index], cells.valid[index], cells.kind[index], cells.source[index])
+
+
+def ground_section(cells: Cells, z: float) -> Cells:
+    """The section of 3-D cells with the plane ``z`` (ground robots), as 2-D cells:
+    ``{(x, y) : a_xy·(x, y) ≤ b − a_z z}`` with rows normalised; rows with ``a_xy ≈ 0``
+    are dropped when satisfied and make the cell empty otherwise, except the floor and
+    ceiling walls, which do not bound ground robots."""
+    a_xy = cells.A[..., :2]
+    norm = np.linalg.norm(a_xy, axis=-1)
+    b = cells.b - cells.A[..., 2] * z
+    flat = norm < 1e-9
+    keep = cells.valid & ~(flat & ((b >= 0) | (cells.kind == int(Kind.WALL))))
+    A = np.where(flat[..., None], 0.0, a_xy / np.where(flat, 1.0, norm)[..., None])
+    b = np.where(flat, np.where(b >= 0, 1.0, b), b / np.where(flat, 1.0, norm))
+    return Cells(A, np.where(keep, b, 1.0), keep, cells.kind, cells.source)
+
+
+def project_2d(points, A, b, valid):
+    """Exact projection onto 2-D cells in the ``(points, A, b, valid) -> (proj, ok)`` form
+    :func:`~.diff_drive.three_projection_control` takes."""
+    proj = project_onto_cells(points, Cells(A, b, valid, np.zeros(valid.shape, np.int8), np.zeros(valid.shape, np.intp)))
+    return np.where(proj.empty[:, None], points, proj.point), ~proj.empty
+
+
+# ---------------------------------------------------------------------------------------
+# teams at run time
+# ---------------------------------------------------------------------------------------
+@dataclass
+class Group:
+    """One team at run time: its slice of the fleet, TRUE states, controller and memory."""
+
+    name: str
+    kind: str
+    controller: str
+    index: slice
+    params: object
+    v_max: float
+    flying: bool
+    state: np.ndarray
+    arrived: np.ndarray
+    z: float | None = None  # plane of ground robots in 3-D
+    si_state: ControllerState | None = None
+    rotation: GoalRotation | None = None
+    mpc: BuavcMPC | None = None
+    grown: np.ndarray | None = field(default=None, repr=False)
+
+    @property
+    def plane_dim(self) -> int:
+        """Dimension of the space the team's controller works in."""
+        return 3 if self.flying else 2
+
+    def positions(self, dim: int) -> np.ndarray:
+        """True positions ``(n, dim)``."""
+        p = self.state[:, : self.plane_dim]
+        if dim == 3 and not self.flying:
+            p = np.column_stack([p, np.full(len(p), self.z)])
+        return p
+
+    def headings(self) -> np.ndarray | None:
+        """Headings ``(n,)`` (unicycle θ, quadrotor yaw ψ), ``None`` for single/double integrators."""
+        return self.state[:, 2] if self.kind == "unicycle" else self.state[:, 8] if self.kind == "quadrotor" else None
+
+    def has_arrived(self) -> np.ndarray:
+        """Latched arrival flags (a robot arrives when its estimate is within the tolerance)."""
+        return self.arrived if self.si_state is None else self.si_state.arrived
+
+    def deadlock_counts(self) -> np.ndarray:
+        """Deadlock detections per robot so far (appendix C)."""
+        for memory in (self.si_state, self.mpc, self.rotation):
+            if memory is not None:
+                return memory.deadlocks
+        return np.zeros(len(self.arrived), np.int64)
+
+    def advance(self, u: np.ndarray, dt: float) -> None:
+        """Move the TRUE states one step under the inputs ``u`` (the team's dynamics)."""
+        if self.kind == "single_integrator":
+            self.state = single_integrator.step(self.state, u[:, :2], dt)
+        elif self.kind == "double_integrator":
+            self.state = di.step(self.state, u[:, :2], dt, self.params)
+        elif self.kind == "unicycle":
+            self.state = uni.step(self.state, u[:, :2], dt, self.params)
+        else:
+            self.state = quad.step(self.state, u, dt, self.params)
+
+
+def make_group(spec: Spec, team: TeamSpec, index: slice, starts: np.ndarray, goals: np.ndarray, grown: np.ndarray | None) -> Group:
+    """A team's initial state (at rest; unicycles facing their goal) and controller."""
+    n, kind, model = team.n, team.model.kind, team.model
+    xy = starts[:, :2]
+    if kind == "single_integrator":
+        params, state = SingleIntegratorParams(v_max=team.v_max), xy.copy()
+    elif kind == "double_integrator":
+        params, state = di.DoubleIntegratorParams(a_max=model.a_max, v_max=team.v_max), np.column_stack([xy, np.zeros((n, 2))])
+    elif kind == "unicycle":
+        heading = np.arctan2(goals[:, 1] - xy[:, 1], goals[:, 0] - xy[:, 0])
+        params, state = uni.UnicycleParams(v_max=team.v_max, omega_max=model.omega_max), np.column_stack([xy, heading])
+    else:
+        params, state = model.quadrotor, np.column_stack([starts[:, :3], np.zeros((n, 6))])
+    group = Group(team.name, kind, model.controller, index, params, team.v_max, team.flying, state, np.zeros(n, bool), grown=grown)
+    if spec.space3d is not None and not team.flying:
+        group.z = spec.ground_height()
+    d = spec.deadlock
+    if spec.method == "orca":
+        pass  # ORCA keeps only the arrival flags
+    elif model.controller == "mpc":
+        group.mpc = BuavcMPC(kind, params, dim=group.plane_dim, dt=spec.dt, config=model.mpc, n_robots=n)
+    elif kind == "single_integrator":
+        group.si_state = ControllerState.initial(n, d.window)
+    else:
+        group.rotation = GoalRotation(n, d.window, d.progress_fraction * team.v_max * d.window * spec.dt, d.recover_steps)
+    return group
+
+
+@dataclass(frozen=True)
+class StepFlags:
+    """Robots newly detected in deadlock and robots (not arrived) whose cell was empty, this step."""
+
+    deadlocked: np.ndarray
+    empty: np.ndarray
+
+
+# ---------------------------------------------------------------------------------------
+# the world
+# ---------------------------------------------------------------------------------------
+class World:
+    """Everything the loop needs, built once from the spec: starts and goals, the noise,
+    the fleet's cells, the teams with their controllers and dynamics.
+
+    Parameters
+    ----------
+    spec:
+        The scenario.
+    rng:
+        The run's generator; random layouts are drawn from it here, the noise later.
+    """
+
+    def __init__(self, spec: Spec, rng: np.random.Generator):
+        self.spec, self.dim, self.dt = spec, spec.dim, spec.dt
+        self.setup = method_setup(spec.method, spec.delta, spec.inflation_sigmas)
+        self.starts, self.goals, slices = initial_layout(spec, rng)
+        self.n = len(self.starts)
+        teams = spec.team_specs()
+        self.cell_model = None if spec.method == "orca" else cell_model(spec, self.setup)
+        self.groups = [make_group(spec, team, sl, self.starts[sl], self.goals[sl], self.detour_vertices(team))
+                       for team, sl in zip(teams, slices)]
+        self.noise_factor = self.position_noise_factor(teams, slices)
+        self.obstacle_factor, self.n_obstacles = self.obstacle_noise()
+        self.radius = np.full(self.n, spec.robots.radius)
+        self.v_max = np.concatenate([np.full(t.n, t.v_max) for t in teams])
+        self.control_width = max(CONTROL_WIDTH[t.model.kind] for t in teams)
+        self.velocity = np.zeros((self.n, self.dim))
+        self.deadlock = DeadlockParams(**spec.deadlock.model_dump())
+        self.fallback_steps = 0
+
+    # -- set-up ---------------------------------------------------------------------------
+    def detour_vertices(self, team: TeamSpec) -> np.ndarray | None:
+        """Appendix C detour targets of a 2-D single-integrator team: the obstacles grown
+        by 1.05 × the whole clearance its cells keep (r_s, the chance buffer, the ε-shadow)."""
+        if self.cell_model is None or self.dim == 3 or team.model.kind != "single_integrator" or team.model.controller != "one_step":
+            return None
+        sigma = team.largest_sigma() if self.setup.chance_constrained else 0.0
+        ws = self.spec.workspace
+        margin = obstacle_clearance(self.setup.cell_radius(self.spec.robots.radius, team.largest_sigma()), sigma, self.setup.quantile,
+                                    self.cell_model.geometry.obstacles, ws.obstacle_covariance())
+        return grown_obstacle_vertices(ws.obstacle_polygons(), 1.05 * margin)
+
+    def position_noise_factor(self, teams: tuple[TeamSpec, ...], slices: list[slice]) -> np.ndarray:
+        """``L`` with ``L Lᵀ = Σ``: one ``(d, d)`` factor for one team, else ``(N, d, d)``."""
+        if len(teams) == 1:
+            return team_noise_factor(teams[0], self.dim)
+        factors = np.empty((self.n, self.dim, self.dim))
+        for team, sl in zip(teams, slices):
+            factors[sl] = team_noise_factor(team, self.dim)
+        return factors
+
+    def obstacle_noise(self) -> tuple[np.ndarray, int]:
+        """The factor of Σ_o and the number of obstacles whose position estimates are noisy."""
+        if self.spec.space3d is None:
+            ws = self.spec.workspace
+            return noise_factor(ws.obstacle_covariance()), len(ws.obstacles)
+        space = self.spec.space3d
+        return space.obstacle_sigma * np.eye(3), len(space.boxes)
+
+    # -- sensing --------------------------------------------------------------------------
+    def position_noise(self, rng: np.random.Generator) -> np.ndarray:
+        """Estimation errors ``(N, d)``, one draw from ``N(0, Σ_i)`` per robot."""
+        z = rng.standard_normal((self.n, self.dim))
+        return z @ self.noise_factor.T if self.noise_factor.ndim == 2 else np.einsum("nij,nj->ni", self.noise_factor, z)
+
+    def obstacle_shift(self, rng: np.random.Generator) -> np.ndarray:
+        """Estimation errors ``(O, d)`` of the obstacles' positions, drawn from ``N(0, Σ_o)``."""
+        return rng.standard_normal((self.n_obstacles, self.dim)) @ self.obstacle_factor.T
+
+    def positions(self) -> np.ndarray:
+        """True positions ``(N, d)``."""
+        if len(self.groups) == 1:
+            return self.groups[0].positions(self.dim)
+        out = np.empty((self.n, self.dim))
+        for g in self.groups:
+            out[g.index] = g.positions(self.dim)
+        return out
+
+    @property
+    def has_headings(self) -> bool:
+        return any(g.headings() is not None for g in self.groups)
+
+    def headings(self) -> np.ndarray:
+        """Headings ``(N,)``, NaN for robots without one."""
+        out = np.full(self.n, np.nan)
+        for g in self.groups:
+            heading = g.headings()
+            if heading is not None:
+                out[g.index] = heading
+        return out
+
+    def arrived(self) -> np.ndarray:
+        """Latched arrival flags ``(N,)``."""
+        if len(self.groups) == 1:
+            return self.groups[0].has_arrived()
+        return np.concatenate([g.has_arrived() for g in self.groups])
+
+    def deadlock_counts(self) -> np.ndarray:
+        """Deadlock detections per robot so far."""
+        return np.concatenate([g.deadlock_counts() for g in self.groups])
+
+    # -- deciding ---------------------------------------------------------------------------
+    def decide(self, estimates: np.ndarray, obstacle_shift: np.ndarray) -> tuple[Cells | None, np.ndarray, StepFlags]:
+        """Every robot's cell and input for this step: ``(cells, controls (N, width), flags)``."""
+        before = self.deadlock_counts().copy()
+        empty = np.zeros(self.n, bool)
+        if self.cell_model is None:
+            cells, u = None, self.orca_control(estimates)
+        else:
+            cells = self.cell_model.cells(estimates, obstacle_shift)
+            u = np.zeros((self.n, self.control_width))
+            for g in self.groups:
+                control, empty[g.index] = self.team_control(g, estimates, self.team_cells(cells, g))
+                u[g.index, : control.shape[1]] = control
+        return cells, u, StepFlags(self.deadlock_counts() > before, empty & ~self.arrived())
+
+    def team_cells(self, cells: Cells, g: Group) -> Cells:
+        """A team's cells (their section with the ground plane for ground robots in 3-D)."""
+        rows = team_rows(cells, g.index)
+        return ground_section(rows, g.z) if (self.dim == 3 and not g.flying) else rows
+
+    def team_control(self, g: Group, estimates: np.ndarray, cells: Cells) -> tuple[np.ndarray, np.ndarray]:
+        """Inputs of one team and its robots whose cell was empty."""
+        spec, dt = self.spec, self.dt
+        p_est = estimates[g.index, : g.plane_dim]
+        goal = self.goals[g.index, : g.plane_dim]
+        no_empty = np.zeros(len(p_est), bool)
+        if g.si_state is not None:
+            u, info = single_integrator_control(p_est, goal, cells, g.si_state, v_max=g.v_max, dt=dt, goal_tolerance=spec.goal_tolerance,
+                                                deadlock=self.deadlock, grown_obstacles=g.grown)
+            return u, info["empty"]
+        g.arrived |= np.linalg.norm(goal - p_est, axis=1) <= spec.goal_tolerance
+        state_est = g.state.copy()
+        state_est[:, : g.plane_dim] = p_est
+        if g.mpc is not None:
+            u, info = g.mpc.control(state_est, goal, cells.A, cells.b, cells.valid, arrived=g.arrived)
+            self.fallback_steps += int(info["fallback"].sum())
+            return u, no_empty
+        working = g.rotation.working_goals(p_est, goal, g.arrived)
+        if g.kind == "double_integrator":
+            proj = project_onto_cells(working, cells)
+            target = np.where(proj.empty[:, None], p_est, proj.point)
+            u, _ = braking_rule(p_est, g.state[:, 2:], target, cells.A, cells.b, cells.valid, g.params, dt)
+            return np.where(g.arrived[:, None], braking_control(g.state[:, 2:], g.params.a_max, dt), u), proj.empty
+        u = three_projection_control(state_est, working, cells.A, cells.b, cells.valid, g.params, dt, project=project_2d)
+        return np.where(g.arrived[:, None], 0.0, u), no_empty
+
+    def orca_control(self, estimates: np.ndarray) -> np.ndarray:
+        """ORCA velocities (van den Berg et al. 2011) for all robots, preferring the goal at
+        full speed; arrived robots prefer to stand still."""
+        for g in self.groups:
+            g.arrived |= np.linalg.norm(self.goals[g.index] - estimates[g.index], axis=1) <= self.spec.goal_tolerance
+        arrived = self.arrived()
+        pref = np.where(arrived[:, None], 0.0, preferred_velocities(estimates, self.goals, self.v_max, self.dt))
+        v, _ = orca_velocities(estimates, self.velocity, pref, self.radius, self.v_max, self.spec.orca, self.dt)
+        return v
+
+    # -- moving ---------------------------------------------------------------------------
+    def advance(self, u: np.ndarray) -> None:
+        """Move every TRUE state one step (ORCA also needs the realised velocities)."""
+        before = self.positions() if self.cell_model is None else None
+        for g in self.groups:
+            g.advance(u[g.index], self.dt)
+        if before is not None:
+            self.velocity = (self.positions() - before) / self.dt
+
+    def counts(self) -> ControllerCounts:
+        """The controllers' counters (deadlocks, MPC fallbacks; empty cells are counted from events)."""
+        return ControllerCounts(deadlock_detections=int(self.deadlock_counts().sum()), mpc_fallback_steps=self.fallback_steps)
+
+    def metadata(self) -> dict:
+        """What is needed to interpret the arrays (viz, metrics, replays), as plain JSON values."""
+        spec, teams = self.spec, self.spec.team_specs()
+        covs = [team_covariance(t, self.dim) for t in teams]
+        per_robot = lambda values: [v for t, v in zip(teams, values) for _ in range(t.n)]  # noqa: E731
+        shared = self.dim == 2 and all(np.array_equal(c, covs[0]) for c in covs)
+        return to_plain({
+            "method": spec.method, "dt": spec.dt, "radius": spec.robots.radius, "goals": self.goals, "starts": self.starts,
+            "goal_tolerance": spec.goal_tolerance, "delta": spec.delta, "local_box": spec.local_box, "dim": self.dim,
+            "teams": per_robot([t.name for t in teams]), "models": per_robot([t.model.kind for t in teams]),
+            "controllers": per_robot([t.model.controller for t in teams]), "v_max": per_robot([t.v_max for t in teams]),
+            "sigma": per_robot([t.largest_sigma() for t in teams]), "robot_cov": covs[0] if shared else None,
+            "boxes": [{"center": list(b.center), "size": list(b.size), "yaw": b.yaw} for b in spec.space3d.boxes] if spec.space3d else [],
+            "bounds3d": list(spec.space3d.bounds) if spec.space3d is not None else None,
+        })
+
+
+# ---------------------------------------------------------------------------------------
+# the loop
+# ---------------------------------------------------------------------------------------
+def records_cells(spec: Spec, world: World) -> bool:
+    """Whether the run records every robot's cell (2-D runs with cells; default N ≤ 64)."""
+    if world.cell_model is None or world.dim != 2:
+        return False
+    return spec.record_cells if spec.record_cells is not None else world.n <= RECORD_CELLS_MAX_ROBOTS
+
+
+def record_cell_log(rec: Recorder, log: list[tuple[np.ndarray, np.ndarray]]) -> None:
+    """Write the per-step cells into ``cell_A (T, N, M, 2)`` / ``cell_b (T, N, M)``, padded
+    to the widest step with always-true rows ``0·p ≤ 1``."""
     m = max(a.shape[1] for a, _ in log)
-    A = np.zeros((len(log), log[0][0].shape[0], m, 2))
-    b = np.ones((len(log), log[0][0].shape[0], m))
+    n, d = log[0][0].shape[0], log[0][0].shape[2]
+    rec.step("cell_A", (n, m, d), fill=0.0)
+    rec.step("cell_b", (n, m), fill=1.0)
     for k, (a_k, b_k) in enumerate(log):
-        A[k, :, : a_k.shape[1]] = a_k
-        b[k, :, : b_k.shape[1]] = b_k
-    return {"cell_A": A, "cell_b": b}
+        rec["cell_A"][k, :, : a_k.shape[1]] = a_k
+        rec["cell_b"][k, :, : b_k.shape[1]] = b_k
 
 
-def _seed_repr(seed):
-    return seed if isinstance(seed, (int, type(None))) else repr(seed)
+def simulate(spec: Spec, seed: int | None = None, progress: bool = False) -> Trace:
+    """Simulate a scenario and return its :class:`~robofleet.core.trace.Trace`.
+
+    Parameters
+    ----------
+    spec:
+        The validated scenario.
+    seed:
+        ``None`` draws a fresh seed (recorded as ``trace.seed``); every random draw of the
+        run (random layouts, the robots' and obstacles' estimation noise) comes from it,
+        so ``simulate(spec, seed=trace.seed)`` replays every array bit for bit.
+    progress:
+        Show a progress bar.
+
+    Returns
+    -------
+    Trace
+        Arrays ``positions (T+1, N, d)`` true positions, ``estimates (T, N, d)``,
+        ``controls (T, N, w)`` (zero-padded to the widest team's inputs), ``headings
+        (T+1, N)`` when a team has headings (NaN for the others), ``step_seconds (T,)``
+        (cells + controllers of the whole fleet), ``arrival_steps (N,)``; 2-D runs with
+        cells record ``cell_A``/``cell_b`` (default for N ≤ 64). Events ``arrived``,
+        ``deadlock``, ``empty_cell``. Results: :data:`~.metrics.RESULTS`. Metadata
+        ``loop_seconds``: the step loop's wall time alone (without the set-up and the
+        per-run results).
+    """
+    seed = resolve_seed(seed)
+    rng = as_generator(seed)
+    world = World(spec, rng)
+    rec = Recorder(spec.max_steps, world.n, label=f"{spec.method} · {world.n} robots", progress=progress)
+    rec.state("positions", (world.n, world.dim), initial=world.positions())
+    if world.has_headings:
+        rec.state("headings", (world.n,), initial=world.headings())
+    rec.step("estimates", (world.n, world.dim))
+    rec.step("controls", (world.n, world.control_width))
+    cell_log: list | None = [] if records_cells(spec, world) else None
+
+    def step(k: int) -> bool:
+        estimates = rec["positions"][k] + world.position_noise(rng)
+        shift = world.obstacle_shift(rng)
+        with rec.timed(k):
+            cells, controls, flags = world.decide(estimates, shift)
+        world.advance(controls)
+        rec.put(k, estimates=estimates, controls=controls)
+        rec.put_state(k + 1, positions=world.positions())
+        if world.has_headings:
+            rec.put_state(k + 1, headings=world.headings())
+        rec.arrive(k + 1, world.arrived())
+        rec.events_for(k, "deadlock", flags.deadlocked)
+        rec.events_for(k, "empty_cell", flags.empty)
+        if cell_log is not None:
+            cell_log.append((cells.A, cells.b))
+        return rec.all_arrived
+
+    rec.run(step)
+    loop_seconds = rec.wall_seconds
+    if cell_log:
+        record_cell_log(rec, cell_log)
+    arrays = rec.arrays()
+    workspace = spec.workspace.build() if spec.space3d is None else None
+    counts = replace(world.counts(), empty_cell_steps=sum(e["kind"] == "empty_cell" for e in rec.events))
+    results = run_results(arrays["positions"], world.goals, radius=spec.robots.radius, dt=spec.dt, goal_tolerance=spec.goal_tolerance,
+                          workspace=workspace, boxes=spec.space3d.box_arrays() if spec.space3d is not None else None,
+                          step_seconds=arrays["step_seconds"], arrivals=arrays["arrival_steps"], counts=counts)
+    metadata = {**world.metadata(), "loop_seconds": loop_seconds}
+    return rec.trace("avoidance", scenario=spec.scenario_name, seed=seed, metadata=metadata, results=results, workspace=workspace)

@@ -9,13 +9,13 @@ Anything a user can get wrong ends as one line on stderr and exit status 2.
 from __future__ import annotations
 
 import sys
+from importlib.metadata import version as installed_version
 from pathlib import Path
 from typing import Annotated, Optional
 
 import typer
 from rich.console import Console
 
-from .. import __version__
 from ..core.errors import RobofleetError
 from ..core.trace import dumps_json
 from ..experiments import reproduce as run_reproduction
@@ -39,7 +39,7 @@ QuietOption = Annotated[bool, typer.Option("--quiet", help="No progress bar and 
 
 def version_callback(value: bool) -> None:
     if value:
-        typer.echo(f"robofleet {__version__}")
+        typer.echo(f"robofleet {installed_version('robofleet')}")
         raise typer.Exit()
 
 

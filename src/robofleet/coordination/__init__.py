@@ -3,18 +3,23 @@
 RMTRACK (Eq. 1), label flipping (RMTRACK+TFF, RMTRACK+TFA), the segment graph
 (Definition 3) with incremental and full cycle tests, the theory checks (Definition 4,
 Theorem 4), a revised prioritized planner for the initial plans and the X-plus-corridor
-experiment of Fig. 6.
+map of Fig. 1. The family contract: :class:`Spec` (``spec.py``), :func:`simulate`
+(``simulation.py``), the per-run results (``metrics.py``), :func:`check`
+(``guarantees.py``) and ``FAMILY`` (``family.py``).
 """
 
 from .coordination_space import CoordinationSpace, build_coordination_space
+from .family import FAMILY
+from .guarantees import TheoryReport, check, check_theory
+from .plan_execution import ALL_VARIANTS, Estimate, Execution, Method, PlanExecutor, Variant
 from .segment_graph import IncrementalCycleDetector, Resolution, SegmentLayout, build_segment_layout, has_cycle_full
-from .simulation import ALL_VARIANTS, Estimate, Execution, PlanExecutor, Method, Variant
-from .theory import TheoryReport, check_theory
+from .simulation import simulate
+from .spec import Spec
 from .trajectories import Trajectories, load_trajectories, make_trajectories, save_trajectories
 
 __all__ = [
-    "CoordinationSpace", "build_coordination_space", "IncrementalCycleDetector", "Resolution", "SegmentLayout",
-    "build_segment_layout", "has_cycle_full", "ALL_VARIANTS", "Estimate", "Execution", "PlanExecutor", "Method",
-    "Variant", "TheoryReport", "check_theory", "Trajectories", "load_trajectories", "make_trajectories",
-    "save_trajectories",
+    "CoordinationSpace", "build_coordination_space", "FAMILY", "TheoryReport", "check", "check_theory",
+    "ALL_VARIANTS", "Estimate", "Execution", "Method", "PlanExecutor", "Variant", "IncrementalCycleDetector",
+    "Resolution", "SegmentLayout", "build_segment_layout", "has_cycle_full", "simulate", "Spec", "Trajectories",
+    "load_trajectories", "make_trajectories", "save_trajectories",
 ]

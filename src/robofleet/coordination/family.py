@@ -1,7 +1,23 @@
-"""TEMPORARY wiring of the coordination family into the family table (replaced by the redesign)."""
+"""The coordination family as the rest of robofleet sees it (:data:`FAMILY`)."""
+
+from __future__ import annotations
 
 from ..core.family import Family
-from . import scenario
+from .guarantees import check
+from .metrics import RESULTS
+from .simulation import simulate
+from .spec import Spec
 
-FAMILY = Family(name="coordination", title="coordination", paper="", spec=scenario.Spec, simulate=scenario.simulate,
-                check=lambda spec: [], viz="robofleet.viz.coordination", budget="max_steps")
+PAPER = "anonymous authors 2021 (paper 000), on RMTRACK (Čáp, Gregoire & Frazzoli 2016) and label flipping (Coskun & O'Kane 2019)"
+
+FAMILY = Family(
+    name="coordination",
+    title="deadlock-free execution of multi-robot plans under disturbances (RMTRACK, TFF/TFA flips, segment graphs)",
+    paper=PAPER,
+    spec=Spec,
+    simulate=simulate,
+    check=check,
+    viz="robofleet.viz.coordination",
+    budget="simulation.max_steps",
+    results=RESULTS,
+)

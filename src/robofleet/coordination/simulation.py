@@ -1,241 +1,153 @@
-"""Discrete-step execution of a plan under disturbances (paper 000, "Problem Statement").
+"""The coordination family's one loop: spec → world → steps → :class:`~robofleet.core.trace.Trace`.
 
-Each step every robot chooses ``a_i(t)`` by RMTRACK (Eq. 1), possibly after flip tests
-(TFF/TFA, optionally guarded by the segment-graph cycle test); the disturbance
-``δ_i(t) = 0`` with the probability of the region the robot stands in; then
-``x_i(t + 1) = x_i(t) + a_i(t) δ_i(t)``. A run ends when every robot is finished, on a
-deadlock (Definition 1: at least one robot waiting and none moving) or after
-``max_steps``. Positions are checked for collisions (``‖p_i − p_j‖ < 2r``) every step.
+:func:`simulate` builds the workspace, prepares the instance (the plan and its
+coordination space, :mod:`.instance`), wires a :class:`~.plan_execution.PlanExecutor`
+with the map's disturbance probabilities (known, or learned online for the flip tests)
+and hands one step function to :class:`~robofleet.core.recorder.Recorder`, which
+preallocates the arrays and moves the progress bar.
 
-Disturbances come from one random stream per ``(seed, robot, step)`` (drawn in blocks of
-``DISTURBANCE_BLOCK`` steps per robot, keyed by ``(seed, robot, block)``), so every method
-run with the same seed sees exactly the same disturbances: a paired comparison.
+Step ``k`` of the recorder executes the move from ``t = k`` to ``k + 1`` (disturbances,
+``x(t + 1) = x(t) + a(t) δ(t)``) and then the decisions of ``t = k + 1`` (flip tests, Eq. 1),
+so that the run stops right after the move that finished it, or at the decision that
+found a deadlock. Recorded arrays (rows ``0..n_steps``):
+
+``positions`` ``(n, 2)``, ``progress`` ``(n, 1)`` (``x_i``), ``waiting`` ``(n, 1)`` (the first
+case of Eq. 1), ``disturbed`` ``(n, 1)`` per step (``δ_i(t) = 0``), ``step_seconds``,
+``arrival_steps``, and ``plan`` ``(K_max + 1, n, 2)``, the planned trajectories.
+
+Seeds: ``simulate(spec, seed)`` passes ``seed`` through :func:`~robofleet.core.rng.resolve_seed`;
+the disturbances (one stream per robot and block of steps) and, when
+``robots.instance_seed`` is null, the instance derive from it.
 """
 
 from __future__ import annotations
 
-import time
-from dataclasses import dataclass, field
-from enum import Enum
-from typing import Callable
-
 import numpy as np
 
-from ..core.rng import keyed_generator
-from .coordination_space import CoordinationSpace
-from .label_flipping import FlipContext, KnownProbabilities, LearnedProbabilities, flip_eligible, tfa_wants_flip, tff_wants_flip
-from .rmtrack import ActionRule
-from .segment_graph import IncrementalCycleDetector, Resolution, SegmentLayout, build_segment_layout, has_cycle_full
-from .trajectories import Trajectories
+from ..core.recorder import Recorder
+from ..core.rng import resolve_seed
+from ..core.trace import Trace
+from ..core.workspace import Workspace
+from .guarantees import check_theory
+from .instance import Instance, prepare_instance
+from .label_flipping import KnownProbabilities, LearnedProbabilities
+from .maps import probability_map
+from .metrics import run_results
+from .plan_execution import Decision, Estimate, ExecutionState, PlanExecutor, Variant
+from .spec import Spec
 
-DISTURBANCE_BLOCK = 256
-
-
-class Method(str, Enum):
-    """Execution policy: plain RMTRACK or RMTRACK with a flip test."""
-
-    RMTRACK = "rmtrack"
-    TFF = "tff"
-    TFA = "tfa"
+FAMILY_NAME = "coordination"
 
 
-class Estimate(str, Enum):
-    """Where the flip tests' disturbance probabilities come from."""
-
-    KNOWN = "known"
-    LEARNED = "learned"
-
-
-METHOD_NAMES = {Method.RMTRACK: "RMTRACK", Method.TFF: "RMTRACK+TFF", Method.TFA: "RMTRACK+TFA"}
-FLIP_TESTS: dict[Method, Callable[[FlipContext], bool]] = {Method.TFF: tff_wants_flip, Method.TFA: tfa_wants_flip}
-
-
-@dataclass(frozen=True)
-class Variant:
-    """One of the six method variants of Fig. 6."""
-
-    method: Method
-    deadlock_check: bool
-
-    @property
-    def name(self) -> str:
-        return METHOD_NAMES[self.method] + (" (checked)" if self.deadlock_check else "")
-
-
-ALL_VARIANTS = tuple(Variant(m, c) for m in Method for c in (False, True))
-
-
-class DisturbanceStream:
-    """Uniform draws ``u_i(t)``, one stream per ``(seed, robot, step)``; robot disturbed iff ``u < p``."""
-
-    def __init__(self, seed: int, n_robots: int):
-        self.seed, self.n = int(seed), n_robots
-        self._blocks: dict[int, np.ndarray] = {}
-
-    def uniforms(self, step: int) -> np.ndarray:
-        block = step // DISTURBANCE_BLOCK
-        if block not in self._blocks:
-            self._blocks[block] = np.stack(
-                [keyed_generator(self.seed, "disturbance", robot, block).random(DISTURBANCE_BLOCK) for robot in range(self.n)], axis=1
-            )
-        return self._blocks[block][step % DISTURBANCE_BLOCK]
-
-
-@dataclass
-class Execution:
-    """What one execution recorded.
-
-    ``progress`` ``(T + 1, n)``: ``x_i(t)``; ``waiting`` ``(T + 1, n)``: state at each step
-    (the last row repeats the final state). ``decision_seconds``: wall time spent in flip
-    tests and cycle checks.
-    """
-
-    progress: np.ndarray
-    waiting: np.ndarray
-    events: list[dict]
-    labels: np.ndarray
-    deadlock: bool
-    finished: bool
-    collisions: int
-    flips: int
-    refused_flips: int
-    flip_tests: int
-    decision_seconds: float
-    arrival_steps: np.ndarray
-    cycle_log: list = field(default_factory=list)
-
-    @property
-    def n_steps(self) -> int:
-        return int(len(self.progress) - 1)
-
-
-@dataclass
-class PlanExecutor:
-    """Runs one variant on one plan.
+def simulate(spec: Spec, seed: int | None = None, progress: bool = False) -> Trace:
+    """Execute the scenario's plan with its policy under random disturbances.
 
     Parameters
     ----------
-    traj, space: the plan and its coordination space.
-    variant: method and whether flips are guarded by the segment-graph cycle test.
-    times: expected-time model for the flip tests (known or learned probabilities).
-    probability: ``(n, K_max + 1)`` true disturbance probability at each plan step.
-    layout: segment layout (built on demand when the check is on).
-    flip_test: override of the flip test (tests use it to inject arbitrary flips).
-    detector: the cycle-test class (``IncrementalCycleDetector``; tests and benchmarks pass
-        a subclass that checks or times each answer against the full reference).
-    disturbed: override ``disturbed(step, progress) -> bool (n,)`` of the random disturbances.
-    observe_cells: ``(n, K_max + 1)`` map cells for a learned estimate.
+    spec:
+        The scenario.
+    seed:
+        Seed of every random draw (disturbances; the instance when ``robots.instance_seed``
+        is null); ``None`` draws one. Recorded as ``trace.seed``.
+    progress:
+        Show a progress bar over the step budget.
+
+    Returns
+    -------
+    Trace
+        Arrays, events (``flip``, ``flip_refused``, ``arrived``, ``collision``,
+        ``deadlock``, ``timeout``), metadata and the results of :mod:`.metrics`.
+    """
+    seed = resolve_seed(seed)
+    workspace = spec.build_workspace()
+    instance = prepare_instance(spec, seed, workspace)
+    variant = Variant(spec.policy.method, spec.policy.deadlock_check)
+    executor = make_executor(spec, instance, workspace, variant)
+    rec = Recorder(spec.simulation.max_steps, instance.trajectories.n_robots,
+                   label=f"{FAMILY_NAME} · {instance.trajectories.n_robots} robots · {variant.name}", progress=progress)
+    loop = RecordedExecution(rec, executor, executor.start(seed, events=rec.events))
+    rec.run(loop.step)
+    executor.conclude(loop.state, rec.steps_taken)
+    return execution_trace(spec, rec, loop.state, instance, workspace, variant, seed)
+
+
+def make_executor(spec: Spec, instance: Instance, workspace: Workspace, variant: Variant) -> PlanExecutor:
+    """A :class:`PlanExecutor` wired with the map's probabilities, known or learned online."""
+    traj = instance.trajectories
+    probability = probability_map(workspace, traj.positions, spec.disturbance.base_probability)
+    cells = None
+    if spec.policy.estimate is Estimate.LEARNED:
+        cells = map_cells(traj.positions, workspace, spec.policy.learned_cell)
+        times = LearnedProbabilities(cells, int(cells.max()) + 1, traj.dt, prior=spec.disturbance.base_probability)
+    else:
+        times = KnownProbabilities(probability, traj.dt)
+    return PlanExecutor(traj, instance.space, variant, times, probability, resolution=spec.policy.resolution,
+                        observe_cells=cells)
+
+
+def map_cells(points: np.ndarray, workspace: Workspace, cell: float) -> np.ndarray:
+    """Index of the square grid cell (side ``cell``) of each point ``(..., 2)``, for the learned estimate."""
+    xmin, ymin, xmax, _ = workspace.extent
+    nx = int(np.ceil((xmax - xmin) / cell)) + 1
+    ix = np.clip(((points[..., 0] - xmin) // cell).astype(int), 0, nx - 1)
+    iy = np.clip(((points[..., 1] - ymin) // cell).astype(int), 0, None)
+    return iy * nx + ix
+
+
+class RecordedExecution:
+    """The recorder's step function: one move and the next step's decisions per call.
+
+    Parameters
+    ----------
+    rec: the recorder (arrays are declared here).
+    executor: the policy on the plan.
+    state: the executor's state at ``t = 0``.
     """
 
-    traj: Trajectories
-    space: CoordinationSpace
-    variant: Variant
-    times: KnownProbabilities | LearnedProbabilities
-    probability: np.ndarray
-    layout: SegmentLayout | None = None
-    resolution: Resolution = Resolution.EXACT
-    flip_test: Callable[[FlipContext], bool] | None = None
-    detector: type[IncrementalCycleDetector] = IncrementalCycleDetector
-    disturbed: Callable[[int, np.ndarray], np.ndarray] | None = None
-    observe_cells: np.ndarray | None = None
-    record_cycles: bool = False
+    def __init__(self, rec: Recorder, executor: PlanExecutor, state: ExecutionState):
+        self.rec, self.executor, self.state = rec, executor, state
+        traj = executor.traj
+        n = traj.n_robots
+        rec.state("positions", (n, 2), initial=traj.starts)
+        rec.state("progress", (n, 1), dtype=np.int64, fill=0, initial=0)
+        rec.state("waiting", (n, 1), dtype=bool, fill=False)
+        rec.step("disturbed", (n, 1), dtype=bool, fill=False)
+        rec.arrive(0, state.x >= traj.lengths)
+        self.decision = self.decide(0)
 
-    def run(self, seed: int, max_steps: int) -> Execution:
-        """Execute until all robots finish, a deadlock or ``max_steps``."""
-        n = self.traj.n_robots
-        rule = ActionRule(self.space)
-        labels = self.space.initial_labels.copy()
-        detector = self._detector(labels)
-        stream = DisturbanceStream(seed, n)
-        x = np.zeros(n, dtype=np.intp)
-        rows_x, rows_wait, events = [x.copy()], [], []
-        tried = np.zeros(self.space.n_obstacles, dtype=bool)
-        stats = {"flips": 0, "refused": 0, "tests": 0, "seconds": 0.0, "collisions": 0}
-        deadlock, cycle_log = False, []
-        arrival = np.where(self.traj.lengths == 0, 0, -1)
-        for t in range(max_steps):
-            if self.variant.method is not Method.RMTRACK:
-                self._flip_round(rule, labels, x, tried, detector, stats, events, t)
-            waiting, moving, finished = rule.states(labels, x)
-            rows_wait.append(waiting)
-            if self.record_cycles:
-                cycle_log.append(self._cycle_now(labels, x))
-            if finished.all():
-                break
-            if waiting.any() and not moving.any():
-                deadlock = True
-                events.append({"step": t, "kind": "deadlock", "robots": np.flatnonzero(waiting).tolist()})
-                break
-            x = self._advance(x, moving, t, stream)
-            rows_x.append(x.copy())
-            newly = (arrival < 0) & (x >= self.traj.lengths)
-            arrival[newly] = t + 1
-            stats["collisions"] += self._collisions(x, t + 1, events)
-        else:
-            rows_wait.append(rule.states(labels, x)[0])
-        finished_all = bool(np.all(x >= self.traj.lengths))
-        if not finished_all and not deadlock:
-            events.append({"step": len(rows_x) - 1, "kind": "timeout"})
-        return Execution(
-            progress=np.array(rows_x), waiting=np.array(rows_wait[: len(rows_x)]), events=events, labels=labels,
-            deadlock=deadlock, finished=finished_all, collisions=stats["collisions"], flips=stats["flips"],
-            refused_flips=stats["refused"], flip_tests=stats["tests"], decision_seconds=stats["seconds"],
-            arrival_steps=arrival, cycle_log=cycle_log,
-        )
+    def decide(self, t: int) -> Decision:
+        """Decisions of step ``t`` (flip tests, Eq. 1), recorded in row ``t`` of ``waiting``."""
+        decision = self.executor.decide(self.state, t) if t < self.rec.max_steps else self.executor.settle(self.state)
+        self.rec.put_state(t, waiting=decision.waiting[:, None])
+        return decision
 
-    def _detector(self, labels: np.ndarray) -> IncrementalCycleDetector | None:
-        if not self.variant.deadlock_check or self.variant.method is Method.RMTRACK:
-            return None
-        if self.layout is None:
-            self.layout = build_segment_layout(self.space, self.resolution)
-        return self.detector(self.layout, labels)
+    def step(self, k: int) -> bool:
+        """Move from ``t = k`` to ``k + 1``, decide at ``k + 1``; ``True`` when the run ends."""
+        rec, state, traj = self.rec, self.state, self.executor.traj
+        if self.decision.stop:  # finished or deadlocked at t = 0: nothing moves
+            rec.put_state(k + 1, positions=traj.at(state.x), progress=state.x[:, None], waiting=self.decision.waiting[:, None])
+            return True
+        with rec.timed(k):
+            hit = self.executor.move(state, self.decision, k)
+            rec.put(k, disturbed=hit[:, None])
+            rec.put_state(k + 1, positions=traj.at(state.x), progress=state.x[:, None])
+            rec.arrive(k + 1, state.x >= traj.lengths)
+            self.decision = self.decide(k + 1)
+        return self.decision.stop
 
-    def _flip_round(self, rule, labels, x, tried, detector, stats, events, t) -> None:
-        """Flip tests for every waiting robot's blocking obstacles (in robot order)."""
-        blocking = np.flatnonzero(rule.blocking_sides(labels, x))
-        if len(blocking) == 0:
-            return
-        test = self.flip_test or FLIP_TESTS[self.variant.method]
-        for side in blocking[np.argsort(self.space.side_waiter[blocking], kind="stable")].tolist():
-            if not flip_eligible(self.space, side, x, tried):
-                continue
-            obstacle, w, a = side // 2, int(self.space.side_waiter[side]), int(self.space.side_other[side])
-            if labels[obstacle] != a:
-                continue
-            tried[obstacle] = True
-            t0 = time.perf_counter()
-            stats["tests"] += 1
-            wanted = test(FlipContext(self.space, side, w, a, x, self.times, labels))
-            accepted = wanted and (detector is None or detector.try_flip(obstacle, w, x))
-            stats["seconds"] += time.perf_counter() - t0
-            if accepted:
-                labels[obstacle] = w
-                stats["flips"] += 1
-                events.append({"step": t, "kind": "flip", "robot": w, "other": a, "obstacle": obstacle})
-            elif wanted:
-                stats["refused"] += 1
-                events.append({"step": t, "kind": "flip_refused", "robot": w, "other": a, "obstacle": obstacle})
 
-    def _advance(self, x, moving, t, stream) -> np.ndarray:
-        """``x(t + 1) = x(t) + a(t) δ(t)``."""
-        if self.disturbed is not None:
-            hit = np.asarray(self.disturbed(t, x), dtype=bool)
-        else:
-            p = self.probability[np.arange(len(x)), x]
-            hit = stream.uniforms(t) < p
-        if self.observe_cells is not None:
-            self.times.observe(self.observe_cells[np.arange(len(x)), x], moving, hit)
-        return x + (moving & ~hit)
-
-    def _collisions(self, x, step, events) -> int:
-        pos = self.traj.at(x)
-        d2 = ((pos[:, None] - pos[None]) ** 2).sum(-1)
-        i, j = np.nonzero(np.triu(d2 < (2 * self.traj.radius) ** 2, k=1))
-        for a, b in zip(i.tolist(), j.tolist()):
-            events.append({"step": step, "kind": "collision", "robots": [a, b]})
-        return len(i)
-
-    def _cycle_now(self, labels, x) -> bool:
-        if self.layout is None:
-            self.layout = build_segment_layout(self.space, self.resolution)
-        return has_cycle_full(self.layout, labels, x)
+def execution_trace(spec: Spec, rec: Recorder, state: ExecutionState, instance: Instance, workspace: Workspace,
+                    variant: Variant, seed: int) -> Trace:
+    """The run as a :class:`Trace`: the recorder's arrays plus the plan, metadata, results."""
+    traj = instance.trajectories
+    report = check_theory(traj, instance.space)
+    metadata = {
+        "method": variant.name, "dt": traj.dt, "radius": traj.radius, "goals": traj.goals.tolist(),
+        "goal_tolerance": 0.0, "base_probability": spec.disturbance.base_probability,
+        "instance_seed": instance.instance_seed,
+    }
+    results = run_results(variant, state, rec.arrival_steps, instance, report)
+    trace = rec.trace(FAMILY_NAME, scenario=spec.scenario_name, seed=seed, metadata=metadata, results=results,
+                      workspace=workspace)
+    trace.arrays["plan"] = np.transpose(traj.positions, (1, 0, 2)).copy()
+    return trace

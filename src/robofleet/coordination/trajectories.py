@@ -8,6 +8,7 @@ A plan is stored as one padded float64 array ``positions`` of shape ``(n, K_max 
 
 from __future__ import annotations
 
+import csv
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -124,7 +125,7 @@ def _read_npz(p: Path, source: str) -> list[np.ndarray]:
     try:
         with np.load(p) as npz:
             data = {k: npz[k] for k in npz.files}
-    except (OSError, ValueError) as exc:
+    except (OSError, ValueError, EOFError) as exc:
         raise ScenarioError("", "a readable .npz file", str(exc), source=source) from None
     if "positions" in data:
         pos = np.asarray(data["positions"], dtype=float)
@@ -142,28 +143,71 @@ def _read_npz(p: Path, source: str) -> list[np.ndarray]:
     return [data[k] for k in keys]
 
 
+CSV_COLUMNS = ("robot", "step", "x", "y")
+
+
 def _read_csv(p: Path, source: str) -> list[np.ndarray]:
+    """Per-robot paths of a ``robot,step,x,y`` CSV file.
+
+    Errors name the file, the row (spreadsheet numbering: the header is row 1) and the
+    column: an empty file, a file with a header only, a row with the wrong number of
+    cells, a robot or step that is not a non-negative integer, a coordinate that is not
+    a finite number, robot ids that are not ``0..n-1``, steps of a robot that are not
+    ``0..K`` consecutive.
+    """
     try:
-        table = np.genfromtxt(p, delimiter=",", names=True, dtype=float)
-    except (OSError, ValueError) as exc:
+        with p.open(newline="") as handle:
+            rows = [row for row in csv.reader(handle) if any(cell.strip() for cell in row)]
+    except (OSError, UnicodeDecodeError) as exc:
         raise ScenarioError("", "a readable CSV file with header robot,step,x,y", str(exc), source=source) from None
-    names = table.dtype.names or ()
-    if set(names) != {"robot", "step", "x", "y"}:
-        raise ScenarioError("header", "columns robot,step,x,y", list(names), source=source)
-    table = np.atleast_1d(table)
-    robot, step = table["robot"], table["step"]
-    if not (np.all(np.isfinite(robot)) and np.all(np.isfinite(step))):
-        raise ScenarioError("robot/step", "integers", "NaN or inf", source=source)
-    ids = np.unique(robot.astype(int))
+    if not rows:
+        raise ScenarioError("", "a CSV file with header robot,step,x,y and one row per robot and step", "an empty file", source=source)
+    header = [cell.strip() for cell in rows[0]]
+    if sorted(header) != sorted(CSV_COLUMNS):
+        raise ScenarioError("header", "columns robot,step,x,y", header, source=source)
+    if len(rows) == 1:
+        raise ScenarioError("", "at least one row robot,step,x,y below the header", "a header only", source=source)
+    table = _csv_table(rows[1:], [header.index(c) for c in CSV_COLUMNS], source)
+    return _csv_paths(table, source)
+
+
+def _csv_table(rows: list[list[str]], columns: list[int], source: str) -> np.ndarray:
+    """The data rows as a float array ``(m, 4)`` in the order robot, step, x, y."""
+    table = np.empty((len(rows), 4))
+    for r, row in enumerate(rows):
+        if len(row) != len(CSV_COLUMNS):
+            raise ScenarioError(f"row {r + 2}", "4 cells robot,step,x,y", ",".join(row), source=source)
+        for c, (name, index) in enumerate(zip(CSV_COLUMNS, columns)):
+            table[r, c] = _csv_cell(row[index], r + 2, name, source)
+    return table
+
+
+def _csv_cell(text: str, row: int, column: str, source: str) -> float:
+    """One cell: a non-negative integer for ``robot`` and ``step``, a finite number for ``x``, ``y``."""
+    try:
+        value = float(text)
+    except ValueError:
+        value = float("nan")
+    integer = column in ("robot", "step")
+    if not np.isfinite(value) or (integer and (value < 0 or value != int(value))):
+        expected = "a non-negative integer" if integer else "a finite number"
+        raise ScenarioError(f"row {row}, column {column}", expected, text.strip(), source=source)
+    return value
+
+
+def _csv_paths(table: np.ndarray, source: str) -> list[np.ndarray]:
+    """Split a ``(m, 4)`` robot, step, x, y table into per-robot paths (ids ``0..n-1``, steps ``0..K``)."""
+    robot, step = table[:, 0].astype(int), table[:, 1].astype(int)
+    ids = np.unique(robot)
     if not np.array_equal(ids, np.arange(len(ids))):
         raise ScenarioError("robot", f"ids 0..{len(ids) - 1}", ids.tolist(), source=source)
     paths = []
-    for r in ids:
-        rows = table[robot.astype(int) == r]
-        rows = rows[np.argsort(rows["step"], kind="stable")]
-        if not np.array_equal(rows["step"].astype(int), np.arange(len(rows))):
-            raise ScenarioError(f"robot {r}.step", "consecutive steps 0..K", rows["step"][:10].tolist(), source=source)
-        paths.append(np.column_stack([rows["x"], rows["y"]]))
+    for r in ids.tolist():
+        mine = np.flatnonzero(robot == r)
+        mine = mine[np.argsort(step[mine], kind="stable")]
+        if not np.array_equal(step[mine], np.arange(len(mine))):
+            raise ScenarioError(f"robot {r}.step", "consecutive steps 0..K", step[mine][:10].tolist(), source=source)
+        paths.append(table[mine, 2:4].copy())
     return paths
 
 

@@ -15,6 +15,7 @@ from types import ModuleType
 from typing import Any, Callable, Mapping, Protocol
 
 from .config import SpecModel
+from .errors import ConfigError
 from .trace import Trace
 
 
@@ -79,5 +80,16 @@ class Family:
     results: Mapping[str, str] = field(default_factory=dict)
 
     def viz_module(self) -> ModuleType:
-        """The figures module (imported now; matplotlib is loaded only here)."""
-        return importlib.import_module(self.viz)
+        """The figures module (imported now; matplotlib is loaded only here).
+
+        Raises
+        ------
+        ConfigError
+            If the family names a figures module that does not exist.
+        """
+        try:
+            return importlib.import_module(self.viz)
+        except ModuleNotFoundError as exc:
+            if exc.name is None or not self.viz.startswith(exc.name):
+                raise
+            raise ConfigError(f"family {self.name!r}: viz: expected a figures module, received {self.viz!r}, which does not exist") from None

@@ -16,6 +16,20 @@ CONTACT_TOL = 1e-7
 allow ``‖p_i − p_j‖ = 2 r`` exactly, which floating point may land a hair below."""
 
 
+MOTION_RESULTS: dict[str, str] = {
+    "collisions": "distinct robot pairs that touched (true positions)",
+    "obstacle_collisions": "distinct robots that touched an obstacle",
+    "collision_steps": "robot-pair and robot-obstacle contacts summed over steps",
+    "min_pair_distance": "smallest centre distance between two robots over the run [m]",
+    "min_obstacle_distance": "smallest centre distance from a robot to an obstacle over the run [m]",
+    "arrived": "share of robots that reached their goal",
+    "makespan": "time until the last robot arrived [s] (NaN unless all arrived)",
+    "mean_travel_time": "mean arrival time of the robots that arrived [s]",
+    "median_step_seconds": "median compute time of one step of the whole team [s]",
+}
+"""The keys :func:`motion_summary` adds to a run's results, and their meaning."""
+
+
 def pair_contacts(positions: np.ndarray, radius: float) -> tuple[np.ndarray, np.ndarray]:
     """Robot–robot contacts over a run.
 

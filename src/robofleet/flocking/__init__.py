@@ -8,7 +8,9 @@ Algorithm 1 (:mod:`.basic`), the hula-hoop (:mod:`.hula_hoop`, Sec. 5.2) and str
 (:mod:`.stripe`, Sec. 5.3) variants, randomized tie breaking (:mod:`.randomized`,
 Sec. 6.4), the variants with more common knowledge (:mod:`.knowledge`, Sec. 6),
 patterns (:mod:`.patterns`, Fig. 8) and metrics (:mod:`.metrics`, Defs. 3.1-3.3 and
-Sec. 4.2). Scenario files use ``family: flocking`` (:mod:`.scenario`).
+Sec. 4.2). Scenario files use ``family: flocking`` (:mod:`.spec`); :mod:`.simulation` is
+the run loop, :mod:`.guarantees` the paper's checkable conditions, :mod:`.family` the
+family's entry in the table.
 
 In every trace of this family, robot index 0 is the leader and indices ``1..m`` are the
 followers.
@@ -22,13 +24,15 @@ from .metrics import convergence_time, d_distance, delta_series, estimated_targe
 from .model import Decision, LocalFrames, Snapshot, look
 from .patterns import Pattern, make_pattern, validate_points
 from .randomized import RandomizedAlgorithm, ranking
-from .schedulers import SchedulerSpec, run
+from .schedulers import LookComputeMove, SchedulerSpec, run
+from .simulation import simulate
+from .spec import Spec
 from .stripe import StripeAlgorithm
 
 __all__ = [
     "BasicAlgorithm", "StripeAlgorithm", "HulaHoopAlgorithm", "RandomizedAlgorithm", "ranking",
     "ObservableHeadingAlgorithm", "MemoryAlgorithm", "ChiralityAlgorithm", "SharedAxesAlgorithm",
-    "LocalFrames", "Snapshot", "Decision", "look", "SchedulerSpec", "run",
+    "LocalFrames", "Snapshot", "Decision", "look", "SchedulerSpec", "LookComputeMove", "run", "Spec", "simulate",
     "LeaderCourse", "check_conditions", "FlockingConditionWarning",
     "Pattern", "make_pattern", "validate_points",
     "d_distance", "delta_series", "estimated_target", "real_target", "convergence_time",

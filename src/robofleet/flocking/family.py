@@ -1,7 +1,22 @@
-"""TEMPORARY wiring of the flocking family into the family table (replaced by the redesign)."""
+"""The flocking family as the rest of robofleet sees it (paper 001: Gervasi & Prencipe,
+*Flocking by a set of autonomous mobile robots*, Univ. of Pisa TR-01-24, 2001)."""
+
+from __future__ import annotations
 
 from ..core.family import Family
-from . import scenario
+from .guarantees import check
+from .metrics import RESULTS
+from .simulation import simulate
+from .spec import Spec
 
-FAMILY = Family(name="flocking", title="flocking", paper="", spec=scenario.Spec, simulate=scenario.simulate,
-                check=lambda spec: [], viz="robofleet.viz.flocking", budget="max_steps")
+FAMILY = Family(
+    name="flocking",
+    title="leader-following flocking of oblivious, anonymous, asynchronous robots (Look-Compute-Move)",
+    paper="Gervasi & Prencipe 2001",
+    spec=Spec,
+    simulate=simulate,
+    check=check,
+    viz="robofleet.viz.flocking",
+    budget="duration",
+    results=RESULTS,
+)

@@ -9,6 +9,9 @@
 * :func:`convergence_time`: first time after which Δ stays ≤ ξ (Def. 3.3-3.4: the
   approximate flocking problem is solved from ``t_1`` on).
 * :func:`slot_changes`: how often followers change their target slot (Sec. 5.1, problem 3).
+* :func:`run_results`: the per-run results a simulation writes into ``trace.results``
+  (documented in :data:`RESULTS`), among them ``success``: the estimated formation was
+  formed up to ξ and kept (:func:`formed_and_kept`).
 
 The leader's own term is always zero (targets put the pattern's leader on the fleet's
 leader), so all functions work on the followers only.
@@ -23,7 +26,46 @@ from scipy.optimize import linear_sum_assignment
 from scipy.spatial.distance import cdist
 
 from ..core.errors import ConfigError
+from .leader import ConditionReport
 from .patterns import Pattern
+from .schedulers import CycleLog
+
+#: The share of the run, at its end, over which the tail means and ``success`` are taken.
+TAIL_FRACTION = 0.1
+
+RESULTS: dict[str, str] = {
+    "pattern": "the pattern's name (wedge, line, spread, random<n>, points, or the pattern file's stem)",
+    "algorithm": "algorithm.kind",
+    "scheduler": "scheduler.kind (fsync, ssync, async)",
+    "n_followers": "followers m (positions hold the leader at index 0 and the followers at 1..m)",
+    "xi": "ξ of Def. 3.3 used by the run (auto: 2 Σ_i k^{f_i}, twice the bound of condition (3))",
+    "delta_e_final": "Δ_e at the last sample: 𝒟-distance to the estimated target (Sec. 4.2)",
+    "delta_r_final": "Δ_r at the last sample: 𝒟-distance to the real target, directed by the leader's heading (Sec. 4.2)",
+    "delta_e_tail": "mean Δ_e over the last 10 % of the samples",
+    "delta_r_tail": "mean Δ_r over the last 10 % of the samples",
+    "convergence_time_e": "first time from which Δ_e ≤ ξ until the end (t_1 of Def. 3.4; NaN if never)",
+    "convergence_time_r": "first time from which Δ_r ≤ ξ until the end (NaN if never)",
+    "converged_e": "whether Δ_e ≤ ξ holds from some sample to the end (approximate undirected flocking on the horizon)",
+    "converged_r": "whether Δ_r ≤ ξ holds from some sample to the end (approximate directed flocking on the horizon)",
+    "delta_r_within_xi_last_third": "share of the samples of the last third of the run with Δ_r ≤ ξ",
+    "slot_changes": "times a follower chose a different slot than at its previous cycle (waits ignored; Sec. 5.1)",
+    "cycles": "Look-Compute-Move cycles run by all followers",
+    "seen_moving_share": "share of Looks that saw at least one other follower while it moved (asynchrony)",
+    "v_leader": "v_L, the leader's speed",
+    "omega_leader": "ω_L, the largest turn rate of the leader's course",
+    "slot_speed": "v_L + ω_L R_P, the largest speed of a slot (Fig. 2)",
+    "v_min": "min_i v_{f_i}, the slowest follower's speed",
+    "sum_k": "Σ_i k^{f_i} with the Moves measured on the cycle log (condition (3))",
+    "condition_4_max": "max_t Σ_i (v_L + ω_L R_P) τ̄_{f_i}(t) measured on the cycle log (condition (4))",
+    "condition_1": "v_L < min_i v_{f_i} (Sec. 3.2, (1))",
+    "condition_2": "v_L + ω_L R_P < min_i v_{f_i} (Sec. 3.2, (2))",
+    "condition_3": "Σ_i k^{f_i} ≤ ξ on the measured Moves (Sec. 3.2, (3))",
+    "condition_4": "condition (4) of Sec. 3.2 on the measured Moves",
+    "delta_m_final": "non-lb-symmetric patterns only: Δ_e up to reflection (to the nearer of ℙ and its mirror image) at the last sample",
+    "convergence_time_m": "non-lb-symmetric patterns only: first time from which Δ_e up to reflection ≤ ξ until the end",
+    "formed_mirror_image": "non-lb-symmetric patterns only: whether the mirror image of ℙ is nearer than ℙ at the end",
+}
+"""Every key :func:`run_results` (and the simulation: pattern, algorithm, scheduler) may write, with its meaning."""
 
 
 @dataclass(frozen=True)
@@ -158,3 +200,85 @@ def slot_changes(robots: np.ndarray, slots: np.ndarray, n_followers: int) -> np.
     r, s = robots[order], slots[order]
     changed = (r[1:] == r[:-1]) & (s[1:] != s[:-1])
     return np.bincount(r[1:][changed], minlength=n_followers)
+
+
+def tail_start(n_samples: int) -> int:
+    """Index of the first sample of the tail: the last :data:`TAIL_FRACTION` of the run (≥ 1 sample)."""
+    return n_samples - max(1, int(n_samples * TAIL_FRACTION))
+
+
+def formed_and_kept(values: np.ndarray, xi: float) -> bool:
+    """Whether the formation is formed up to ξ and kept (Defs. 3.3-3.4 on the horizon).
+
+    True when ``values ≤ xi`` at every sample of the tail (the last 10 % of the run,
+    at least one sample), so the formation held from before the tail to the end.
+    """
+    return bool(np.all(np.asarray(values)[tail_start(len(values)):] <= xi))
+
+
+def within_share(times: np.ndarray, values: np.ndarray, xi: float, since_fraction: float = 2 / 3) -> float:
+    """Share of the samples with ``t ≥ since_fraction · t_end`` where ``values ≤ xi``."""
+    times = np.asarray(times)
+    late = times >= times.max() * since_fraction
+    return float(np.mean(np.asarray(values)[late] <= xi))
+
+
+def formation_results(times: np.ndarray, delta_e: np.ndarray, delta_r: np.ndarray, xi: float) -> dict:
+    """Δ_e and Δ_r at the end and over the tail, their convergence times to ξ (Def. 3.4),
+    ``success`` (:func:`formed_and_kept` on Δ_e) and the share of the last third with Δ_r ≤ ξ."""
+    tail = tail_start(len(delta_e))
+    te, tr = convergence_time(times, delta_e, xi), convergence_time(times, delta_r, xi)
+    return {
+        "success": formed_and_kept(delta_e, xi), "xi": float(xi),
+        "delta_e_final": float(delta_e[-1]), "delta_r_final": float(delta_r[-1]),
+        "delta_e_tail": float(np.nanmean(delta_e[tail:])), "delta_r_tail": float(np.nanmean(delta_r[tail:])),
+        "convergence_time_e": te, "convergence_time_r": tr,
+        "converged_e": bool(np.isfinite(te)), "converged_r": bool(np.isfinite(tr)),
+        "delta_r_within_xi_last_third": within_share(times, delta_r, xi),
+    }
+
+
+def mirror_results(times: np.ndarray, delta_e: np.ndarray, delta_up_to_reflection: np.ndarray, xi: float) -> dict:
+    """For a non-lb-symmetric pattern: results on Δ_e up to reflection, the distance to the
+    nearer of ℙ and its mirror image, which followers without common chirality cannot tell
+    apart (Sec. 6.4); the mirror image was formed when it is nearer than ℙ at the end."""
+    nearer = np.asarray(delta_up_to_reflection)
+    return {"delta_m_final": float(nearer[-1]), "convergence_time_m": convergence_time(times, nearer, xi),
+            "formed_mirror_image": bool(nearer[-1] < delta_e[-1])}
+
+
+def cycle_results(log: CycleLog, n_followers: int) -> dict:
+    """Slot changes (Sec. 5.1, problem 3), cycle count and the share of Looks that saw a
+    follower moving, from the cycle log."""
+    return {"slot_changes": int(slot_changes(log.robot, log.slot, n_followers).sum()), "cycles": len(log),
+            "seen_moving_share": float(np.mean(log.seen_moving > 0)) if len(log) else 0.0}
+
+
+def condition_results(report: ConditionReport) -> dict:
+    """Conditions (1)-(4) of Sec. 3.2 as measured on a run, and the quantities they compare."""
+    return {"v_leader": report.v_leader, "omega_leader": report.omega_leader, "slot_speed": report.slot_speed,
+            "v_min": report.v_min, "sum_k": report.sum_k, "condition_4_max": report.cond4, **report.holds}
+
+
+def run_results(times: np.ndarray, delta_e: np.ndarray, delta_r: np.ndarray, xi: float, log: CycleLog, n_followers: int,
+                conditions: ConditionReport, delta_up_to_reflection: np.ndarray | None = None) -> dict:
+    """Every per-run result of :data:`RESULTS` but the spec's names (pattern, algorithm, scheduler).
+
+    Parameters
+    ----------
+    times, delta_e, delta_r:
+        The sampling instants and Δ_e(t), Δ_r(t) at each (Sec. 4.2).
+    xi:
+        ξ of Def. 3.3.
+    log, n_followers:
+        The cycle log of the run and the number of followers m.
+    conditions:
+        Conditions (1)-(4) of Sec. 3.2 measured on the log.
+    delta_up_to_reflection:
+        For a non-lb-symmetric pattern, Δ_e to the nearer of ℙ and its mirror image (else ``None``).
+    """
+    out = {"n_followers": int(n_followers), **formation_results(times, delta_e, delta_r, xi),
+           **cycle_results(log, n_followers), **condition_results(conditions)}
+    if delta_up_to_reflection is not None:
+        out.update(mirror_results(times, delta_e, delta_up_to_reflection, xi))
+    return out

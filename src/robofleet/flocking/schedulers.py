@@ -22,6 +22,11 @@ v_f τ allows).
 The algorithm only ever receives :class:`~robofleet.flocking.model.Snapshot` s built by
 :func:`~robofleet.flocking.model.look` and returns local paths, turned back into world
 coordinates here. Per Look the engine costs O(m) vectorized work plus the algorithm.
+
+:class:`LookComputeMove` is the engine, advanced one sampling interval at a time by the
+family's loop (:func:`robofleet.flocking.simulation.simulate`, through the core
+recorder); :func:`run` drives it on its own for hand-built configurations (tests,
+benchmarks) and returns the sampled positions and the cycle log.
 """
 
 from __future__ import annotations
@@ -34,7 +39,7 @@ import numpy as np
 from pydantic import Field, model_validator
 
 from ..core.errors import ConfigError, ScenarioError
-from ..core.progress import tracked
+from ..core.recorder import Recorder
 from ..core.config import SpecModel
 from .leader import LeaderCourse
 from .model import Algorithm, LocalFrames, look
@@ -85,18 +90,9 @@ class CycleLog:
     def __len__(self) -> int:
         return len(self.robot)
 
-    def as_events(self, sample_dt: float) -> list[dict]:
-        """The log as trace events (``kind: "cycle"``, ``robot`` = follower index 1..m)."""
-        out = []
-        for c in range(len(self)):
-            out.append({
-                "step": int(self.t_look[c] // sample_dt), "kind": "cycle", "robot": int(self.robot[c]) + 1,
-                "t_look": float(self.t_look[c]), "t_end": float(self.t_end[c]),
-                "start": self.start[c].tolist(), "destination": self.destination[c].tolist(), "end": self.end[c].tolist(),
-                "travel": float(self.travel[c]), "path_length": float(self.path_length[c]), "slot": int(self.slot[c]),
-                "seen_moving": int(self.seen_moving[c]),
-            })
-        return out
+
+INT_COLUMNS = ("robot", "slot", "seen_moving")
+POINT_COLUMNS = ("start", "destination", "end")
 
 
 @dataclass
@@ -188,10 +184,126 @@ def _check_inputs(pattern: Pattern, frames: LocalFrames, starts, speeds) -> tupl
     return starts, speeds
 
 
+def sample_times(duration: float, sample_dt: float) -> np.ndarray:
+    """The sampling instants ``0, sample_dt, 2 sample_dt, … ≤ duration`` (at least two)."""
+    times = np.arange(0.0, duration + 1e-9, sample_dt)
+    if len(times) < 2:
+        raise ConfigError(f"duration: expected at least one sampling interval (≥ sample_dt = {sample_dt:g}), received {duration!r}")
+    return times
+
+
+class LookComputeMove:
+    """The Look-Compute-Move engine of Sec. 2: who looks when, each Compute, each Move.
+
+    Parameters
+    ----------
+    algorithm, pattern, frames:
+        The Compute step, the pattern ℙ and the followers' local frames.
+    starts, speeds:
+        ``(m, 2)`` initial world positions and ``(m,)`` speeds v_f > 0 of the followers.
+    course:
+        The leader's course (observed at every Look).
+    spec:
+        The scheduler (FSYNC, SSYNC or ASYNC; A1-A3 of Sec. 2 as in the module docstring).
+    duration:
+        Simulated time: no Look happens after it.
+    scheduler_rng, algorithm_rng:
+        Independent seeded streams (activations, cycle and move lengths / the algorithm's
+        own random choices).
+
+    The loop calls :meth:`advance` with each sampling instant in turn, reads
+    :meth:`followers` there, and calls :meth:`finish` after the last one.
+    """
+
+    def __init__(self, algorithm: Algorithm, pattern: Pattern, frames: LocalFrames, starts, speeds, course: LeaderCourse,
+                 spec: SchedulerSpec, *, duration: float, scheduler_rng: np.random.Generator,
+                 algorithm_rng: np.random.Generator):
+        starts, speeds = _check_inputs(pattern, frames, starts, speeds)
+        if spec.min_move > spec.rigidity * speeds.min() * spec.move_time_min:
+            raise ScenarioError("scheduler.min_move", f"δ_f <= rigidity · min speed · shortest Move = {spec.rigidity * speeds.min() * spec.move_time_min:.4g}", spec.min_move)
+        self.algorithm, self.pattern, self.frames, self.course, self.spec = algorithm, pattern, frames, course, spec
+        self.starts, self.speeds = starts, speeds
+        self.scheduler_rng, self.algorithm_rng = scheduler_rng, algorithm_rng
+        self.motion = _Motion(starts, speeds, getattr(algorithm, "path_points", 1))
+        self.memory: list = [None] * len(starts)
+        self.rows: dict[str, list] = {k: [] for k in CycleLog.__dataclass_fields__}
+        self.looks = 0
+        self._batches = _look_batches(spec, len(starts), duration, scheduler_rng)
+        self._pending = next(self._batches, None)
+
+    @property
+    def size(self) -> int:
+        """Number of followers m."""
+        return len(self.starts)
+
+    def followers(self, t: float) -> np.ndarray:
+        """``(m, 2)`` world positions of the followers at time ``t`` (moving ones interpolated)."""
+        return self.motion.positions(t)
+
+    def advance(self, until: float) -> int:
+        """Run every Look-Compute-Move cycle that starts before ``until``; return how many ran."""
+        before = self.looks
+        while self._pending is not None and self._pending[0] < until:
+            self._run_batch(*self._pending)
+            self._pending = next(self._batches, None)
+        return self.looks - before
+
+    def finish(self) -> int:
+        """Run the cycles left before the end of the horizon; return how many ran."""
+        return self.advance(np.inf)
+
+    def _run_batch(self, t: float, robots: np.ndarray, taus: np.ndarray) -> None:
+        """The followers ``robots`` Look at time ``t`` (the same instant), Compute, and start
+        their Moves of cycle lengths ``taus`` (A2: ℓ = min(|path|, max(δ_f, η v_f τ)))."""
+        spec, motion, frames, speeds = self.spec, self.motion, self.frames, self.speeds
+        followers = motion.positions(t)
+        leader = self.course.position(t)
+        heading = np.array([np.cos(self.course.heading(t)), np.sin(self.course.heading(t))]) if self.algorithm.needs_heading else None
+        moving = motion.moving(t)
+        plans = []
+        for i, tau in zip(robots, taus):
+            snap = look(frames, i, leader, followers, heading=heading,
+                        odometry_origin=self.starts[i] if self.algorithm.needs_memory else None, memory=self.memory[i])
+            decision = self.algorithm.decide(snap, self.pattern, self.algorithm_rng)
+            self.memory[i] = decision.memory
+            world = np.concatenate([followers[i][None], frames.to_world(i, decision.path, followers[i])])
+            plans.append((i, tau, world, decision.slot))
+        rows = self.rows
+        for i, tau, world, slot in plans:
+            length = float(np.linalg.norm(np.diff(world, axis=0), axis=1).sum())
+            eta = self.scheduler_rng.uniform(spec.rigidity, 1.0) if spec.rigidity < 1.0 else 1.0
+            travel = min(length, max(spec.min_move, eta * speeds[i] * tau))
+            motion.set(i, world, t, travel)
+            rows["robot"].append(i); rows["t_look"].append(t); rows["t_end"].append(t + tau)
+            rows["start"].append(followers[i]); rows["destination"].append(world[-1])
+            rows["end"].append(motion.position_of(i, t + tau)); rows["travel"].append(travel)
+            rows["path_length"].append(length); rows["slot"].append(slot)
+            rows["seen_moving"].append(int(np.count_nonzero(np.delete(moving, i))))
+        self.looks += len(robots)
+
+    def cycle_fields(self, c: int) -> dict:
+        """Cycle ``c`` as event fields (``robot`` = follower index 1..m, leader being 0)."""
+        rows = self.rows
+        return {
+            "robot": int(rows["robot"][c]) + 1, "t_look": float(rows["t_look"][c]), "t_end": float(rows["t_end"][c]),
+            "start": rows["start"][c].tolist(), "destination": rows["destination"][c].tolist(), "end": rows["end"][c].tolist(),
+            "travel": float(rows["travel"][c]), "path_length": float(rows["path_length"][c]), "slot": int(rows["slot"][c]),
+            "seen_moving": int(rows["seen_moving"][c]),
+        }
+
+    def log(self) -> CycleLog:
+        """The cycles run so far as a :class:`CycleLog`."""
+        return CycleLog(**{k: np.asarray(v, dtype=float).reshape(-1, 2) if k in POINT_COLUMNS
+                           else np.asarray(v, dtype=int if k in INT_COLUMNS else float) for k, v in self.rows.items()})
+
+
 def run(algorithm: Algorithm, pattern: Pattern, frames: LocalFrames, starts: np.ndarray, speeds: np.ndarray,
         course: LeaderCourse, spec: SchedulerSpec, *, duration: float, sample_dt: float = 1.0,
         scheduler_rng: np.random.Generator, algorithm_rng: np.random.Generator, progress: bool = False) -> RunResult:
     """Simulate followers running ``algorithm`` under scheduler ``spec`` behind ``course``.
+
+    The same engine and sampling as a scenario run, without a scenario: for hand-built
+    configurations.
 
     Parameters
     ----------
@@ -202,51 +314,18 @@ def run(algorithm: Algorithm, pattern: Pattern, frames: LocalFrames, starts: np.
 
     Returns the sampled positions ``(T, 1 + m, 2)`` (leader at index 0) and the cycle log.
     """
-    starts, speeds = _check_inputs(pattern, frames, starts, speeds)
-    m = len(starts)
-    if spec.min_move > spec.rigidity * speeds.min() * spec.move_time_min:
-        raise ScenarioError("scheduler.min_move", f"δ_f <= rigidity · min speed · shortest Move = {spec.rigidity * speeds.min() * spec.move_time_min:.4g}", spec.min_move)
-    motion = _Motion(starts, speeds, getattr(algorithm, "path_points", 1))
-    memory = [None] * m
-    sample_times = np.arange(0.0, duration + 1e-9, sample_dt)
-    samples = np.empty((len(sample_times), m, 2))
-    rows: dict[str, list] = {k: [] for k in CycleLog.__dataclass_fields__}
-    next_sample, looks = 0, 0
-    with tracked(len(sample_times), "flocking", progress) as advance:
-        for t, robots, taus in _look_batches(spec, m, duration, scheduler_rng):
-            while next_sample < len(sample_times) and sample_times[next_sample] <= t:
-                samples[next_sample] = motion.positions(sample_times[next_sample])
-                next_sample += 1
-                advance()
-            followers = motion.positions(t)
-            leader = course.position(t)
-            heading = np.array([np.cos(course.heading(t)), np.sin(course.heading(t))]) if algorithm.needs_heading else None
-            moving = motion.moving(t)
-            plans = []
-            for i, tau in zip(robots, taus):
-                snap = look(frames, i, leader, followers, heading=heading,
-                            odometry_origin=starts[i] if algorithm.needs_memory else None, memory=memory[i])
-                decision = algorithm.decide(snap, pattern, algorithm_rng)
-                memory[i] = decision.memory
-                world = np.concatenate([followers[i][None], frames.to_world(i, decision.path, followers[i])])
-                plans.append((i, tau, world, decision.slot))
-            for i, tau, world, slot in plans:
-                length = float(np.linalg.norm(np.diff(world, axis=0), axis=1).sum())
-                eta = scheduler_rng.uniform(spec.rigidity, 1.0) if spec.rigidity < 1.0 else 1.0
-                travel = min(length, max(spec.min_move, eta * speeds[i] * tau))
-                motion.set(i, world, t, travel)
-                rows["robot"].append(i); rows["t_look"].append(t); rows["t_end"].append(t + tau)
-                rows["start"].append(followers[i]); rows["destination"].append(world[-1])
-                rows["end"].append(motion.position_of(i, t + tau)); rows["travel"].append(travel)
-                rows["path_length"].append(length); rows["slot"].append(slot)
-                rows["seen_moving"].append(int(np.count_nonzero(np.delete(moving, i))))
-            looks += len(robots)
-        while next_sample < len(sample_times):
-            samples[next_sample] = motion.positions(sample_times[next_sample])
-            next_sample += 1
-            advance()
-    ints, vecs = ("robot", "slot", "seen_moving"), ("start", "destination", "end")
-    log = CycleLog(**{k: np.asarray(v, dtype=float).reshape(-1, 2) if k in vecs else np.asarray(v, dtype=int if k in ints else float)
-                      for k, v in rows.items()})
-    positions = np.concatenate([course.position(sample_times)[:, None, :], samples], axis=1)
-    return RunResult(sample_times, positions, course.heading(sample_times), log, looks)
+    engine = LookComputeMove(algorithm, pattern, frames, starts, speeds, course, spec, duration=duration,
+                             scheduler_rng=scheduler_rng, algorithm_rng=algorithm_rng)
+    times = sample_times(duration, sample_dt)
+    leader = course.position(times)
+    rec = Recorder(len(times) - 1, 1 + engine.size, label="flocking", progress=progress)
+    rec.state("positions", (1 + engine.size, 2), initial=np.vstack([leader[0], engine.followers(times[0])]))
+
+    def step(k: int) -> None:
+        engine.advance(times[k + 1])
+        rec.put_state(k + 1, positions=np.vstack([leader[k + 1], engine.followers(times[k + 1])]))
+        if k + 1 == rec.max_steps:
+            engine.finish()
+
+    rec.run(step)
+    return RunResult(times, rec.arrays()["positions"], course.heading(times), engine.log(), engine.looks)

@@ -92,7 +92,12 @@ def resolve(ref: str | Path, kind: str = "scenarios", base: Path | None = None) 
             return candidate
     if given.exists():
         raise ScenarioError("", f"a {kind[:-1]} file", f"{given} is a directory", source=str(given))
-    return path(str(ref), kind)
+    try:
+        return path(str(ref), kind)
+    except ScenarioError:
+        if given.suffix in (".yaml", ".yml") or given.is_absolute():
+            return given  # meant as a file: reading it reports it missing or unreadable
+        raise
 
 
 def describe(file: Path, root: Path, kind: str) -> Entry:

@@ -22,23 +22,41 @@ Several independent runs (same area, same number of robots, their own seeds and 
 can advance in lockstep as one batch: robot ``g`` is robot ``g % n`` of run ``g // n``,
 robots of different runs never sense, hear or collide with each other, and every robot
 draws from its own stream — so a run's result does not depend on its batch.
+
+The loop runs through :class:`~robofleet.core.recorder.Recorder`: steps 1–3, 7 and 8 of
+step 0 are observed first (:meth:`SearchBatch.observe`); then recorder step ``k`` is
+steps 4–6 of step ``k`` followed by steps 1–3, 7, 8 of step ``k + 1``
+(:meth:`SearchBatch.advance`), until every run has stopped (early stop) or ``max_steps``
+moves are spent. :func:`simulate` is the family's entry point (spec → trace, seed rule
+of :mod:`robofleet.core.rng`); :func:`run_search` and :func:`run_search_batch` run resolved
+:class:`SearchProblem` s without recording arrays.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
 from enum import Enum
+from functools import lru_cache
+from typing import TYPE_CHECKING
 
 import numpy as np
 
+from ..core.errors import ConfigError
+from ..core.recorder import Recorder
+from ..core.rng import keyed_generator, resolve_seed
+from ..core.trace import Trace
 from .decentralized import SequentialPolicy
 from .grids import EPS, Grid
 from .knowledge import RobotMaps
 from .levy_flight import LevyFlightPolicy
+from .metrics import RunRecord, run_results
 from .policy import RobotStreams, StepContext
 from .random_baseline import RandomUnvisitedPolicy
-from .sensing import SensingTables
+from .sensing import SensingTables, build_sensing
 from .timing import MotionTiming, heading_change
+
+if TYPE_CHECKING:
+    from .spec import Spec
 
 
 class Algorithm(str, Enum):
@@ -92,13 +110,12 @@ class SearchProblem:
 
 @dataclass
 class SearchOutcome:
-    """Results of one run; ``vertices``/``times`` only when recorded."""
+    """Results of one run (:func:`.metrics.run_results`), the vertices a robot stood on
+    ``(V,)`` and the steps (moves) taken."""
 
     results: dict
     visited: np.ndarray
-    events: list = field(default_factory=list)
-    vertices: np.ndarray | None = None
-    times: np.ndarray | None = None
+    steps: int
 
 
 def make_policy(problem: SearchProblem, algorithm: Algorithm, n_total: int):
@@ -124,9 +141,17 @@ def collision_pairs(pos: np.ndarray, choice: np.ndarray) -> np.ndarray:
 
 
 class SearchBatch:
-    """State of ``R`` lockstep runs: true positions (observer) and per-robot knowledge (robots)."""
+    """State of ``R`` lockstep runs: true positions (observer) and per-robot knowledge (robots).
 
-    def __init__(self, problems: list[SearchProblem], algorithm: Algorithm, seeds: list[int], record: bool):
+    ``recorder`` (single runs only) receives the positions, vertices and clock of every
+    step and the events; without one the batch still steps through a bare
+    :class:`~robofleet.core.recorder.Recorder` (the loop and its early stop).
+    """
+
+    def __init__(self, problems: list[SearchProblem], algorithm: Algorithm, seeds: list[int], recorder: Recorder | None = None):
+        check_batch(problems, Algorithm(algorithm))
+        if recorder is not None and len(problems) != 1:
+            raise ConfigError(f"recorder: expected a single run to record, received a batch of {len(problems)}")
         p = problems[0]
         self.p = p
         self.algorithm = Algorithm(algorithm)
@@ -157,14 +182,18 @@ class SearchBatch:
         self.step_seconds = timing.rotation_seconds + self.translate_seconds
         self.penalty = timing.collision_penalty_moves * timing.move_time(grid.a)
         self.step2_rows = p.sensing.step2_rows(p.situation)
-        self.record = record and self.R == 1
-        self.events: list[dict] = []
-        self.trail = [self.pos.copy()] if self.record else None
-        self.clock = [0.0] if self.record else None
+        self.record = recorder is not None
+        self.rec = recorder if recorder is not None else Recorder(p.max_steps, N)
+        self.run_of = np.arange(N) // self.n
+        self.no_links = np.zeros((self.R, self.n, self.n), dtype=bool)
+        self.has_failures = bool((self.failures >= 0).any())
+        self.active = self.alive.copy()
+        self.links = self.sensed = self.no_links
 
     def event(self, step: int, kind: str, **info) -> None:
+        """Record an event (single recorded runs), stamped with the run's clock."""
         if self.record:
-            self.events.append({"step": step, "kind": kind, "time": float(self.time[0]), **info})
+            self.rec.event(step, kind, time=float(self.time[0]), **info)
 
     # -- steps 1-3 ----------------------------------------------------------------------
     def sense(self, step: int, live: np.ndarray) -> None:
@@ -241,8 +270,7 @@ class SearchBatch:
         self.rounds += np.where(self.running, rounds, 0)
         self.pos = choice
         if self.record:
-            self.trail.append(self.pos.copy())
-            self.clock.append(float(self.time[0]))
+            self.rec.put_state(step + 1, positions=grid.points[self.pos], vertex=self.pos[:, None], time=self.time[0])
 
     def may_collide(self, choice: np.ndarray) -> bool:
         """Cheap pre-check: a repeated destination in a run, or a robot moving onto an occupied vertex."""
@@ -278,46 +306,57 @@ class SearchBatch:
 
     # -- the loop -----------------------------------------------------------------------
     def run(self) -> list[SearchOutcome]:
-        p, R, n = self.p, self.R, self.n
-        run_of = np.arange(R * n) // n
-        no_links = np.zeros((R, n, n), dtype=bool)
-        has_failures = bool((self.failures >= 0).any())
-        for step in range(p.max_steps + 1):
-            if has_failures:
-                self.fail_robots(step)
-            active = self.alive & self.running[run_of]
-            live = np.flatnonzero(active)
-            links = sensed = no_links
-            if n > 1:
-                pts = p.grid.points[self.pos].reshape(R, n, 2)
-                diff = pts[:, :, None, :] - pts[:, None, :, :]
-                d2 = np.einsum("rijd,rijd->rij", diff, diff)
-                d2[:, np.arange(n), np.arange(n)] = np.inf
-                alive = self.alive.reshape(R, n)
-                in_range = d2 <= self.rc2
-                sensed = (d2 <= self.rso2) & alive[:, :, None]
-                links = in_range & alive[:, :, None] & alive[:, None, :]
-                if has_failures:
-                    self.detect_failures(step, in_range | sensed)
-            self.sense(step, live)
-            if self.policy.communicates and links.any():
-                self.maps.exchange(links)
-            done = self.stop_reached(active).reshape(R, n)
-            finished = done.any(axis=1) & self.running
-            if finished.any():
-                self.stopped_by[finished] = np.argmax(done[finished], axis=1)
-                self.steps[finished] = step
-                for r in np.flatnonzero(finished):
-                    self.event(step, "stop", robot=int(self.stopped_by[r]))
-                self.running &= ~finished
-                active = self.alive & self.running[run_of]
-            if not self.running.any() or step == p.max_steps:
-                break
-            ctx = StepContext(p.grid, p.sensing, self.maps, self.streams, self.pos, self.heading, active,
-                              links, sensed, links | sensed)
+        """Observe step 0, then :meth:`advance` through the recorder until every run stopped."""
+        if not self.observe(0):
+            self.rec.run(self.advance)
+        return [self.outcome(r) for r in range(self.R)]
+
+    def advance(self, k: int) -> bool:
+        """Steps 4–6 of step ``k`` (choose, move), then :meth:`observe` of step ``k + 1``;
+        ``True`` when every run has stopped."""
+        with self.rec.timed(k):
+            p = self.p
+            ctx = StepContext(p.grid, p.sensing, self.maps, self.streams, self.pos, self.heading, self.active,
+                              self.links, self.sensed, self.links | self.sensed)
             choice, rounds = self.policy.choose(ctx)
-            self.move(step, choice, rounds)
-        return [self.outcome(r) for r in range(R)]
+            self.move(k, choice, rounds)
+            return self.observe(k + 1)
+
+    def observe(self, step: int) -> bool:
+        """Failures, steps 1–3 (sensing, failure detection, map exchange) and the stop check
+        of steps 7–8 at ``step``; keeps the links and active robots for the next choice.
+        ``True`` when every run has stopped."""
+        p, R, n = self.p, self.R, self.n
+        if self.has_failures:
+            self.fail_robots(step)
+        active = self.alive & self.running[self.run_of]
+        live = np.flatnonzero(active)
+        links = sensed = self.no_links
+        if n > 1:
+            pts = p.grid.points[self.pos].reshape(R, n, 2)
+            diff = pts[:, :, None, :] - pts[:, None, :, :]
+            d2 = np.einsum("rijd,rijd->rij", diff, diff)
+            d2[:, np.arange(n), np.arange(n)] = np.inf
+            alive = self.alive.reshape(R, n)
+            in_range = d2 <= self.rc2
+            sensed = (d2 <= self.rso2) & alive[:, :, None]
+            links = in_range & alive[:, :, None] & alive[:, None, :]
+            if self.has_failures:
+                self.detect_failures(step, in_range | sensed)
+        self.sense(step, live)
+        if self.policy.communicates and links.any():
+            self.maps.exchange(links)
+        done = self.stop_reached(active).reshape(R, n)
+        finished = done.any(axis=1) & self.running
+        if finished.any():
+            self.stopped_by[finished] = np.argmax(done[finished], axis=1)
+            self.steps[finished] = step
+            for r in np.flatnonzero(finished):
+                self.event(step, "stop", robot=int(self.stopped_by[r]))
+            self.running &= ~finished
+            active = self.alive & self.running[self.run_of]
+        self.active, self.links, self.sensed = active, links, sensed
+        return not self.running.any()
 
     def fail_robots(self, step: int) -> None:
         """Failure injection: a robot whose failure step is reached stops for good."""
@@ -327,34 +366,21 @@ class SearchBatch:
         self.alive &= ~failing
 
     def outcome(self, r: int) -> SearchOutcome:
+        """Run ``r``'s observer record turned into its results (:func:`.metrics.run_results`)."""
         p = self.p
-        reachable = p.grid.reachable_from(self.starts[r]) & p.grid.accessible
         mine = slice(r * self.n, (r + 1) * self.n)
-        found = self.maps.targets[mine].any(axis=0)
         steps = int(self.steps[r])
-        results = {
-            "search_time": float(self.time[r]),
-            "completed": bool(self.stopped_by[r] >= 0),
-            "n_steps": steps,
-            "found_targets": int(found.sum()),
-            "n_targets": int(len(p.targets)),
-            "visited_share": float(self.visited[r][reachable].mean()) if reachable.any() else 1.0,
-            "collisions": int(self.collisions[r]),
-            "obstacle_collisions": int(self.obstacle_collisions[r]),
-            "mean_rounds": float(self.rounds[r] / max(steps, 1)),
-            "failed_robots": int((~self.alive[mine]).sum()),
-        }
-        out = SearchOutcome(results, self.visited[r].copy(), self.events if self.record else [])
-        if self.record:
-            out.vertices = np.asarray(self.trail)
-            out.times = np.asarray(self.clock)
-        return out
+        record = RunRecord(
+            situation=p.situation, search_time=float(self.time[r]), completed=bool(self.stopped_by[r] >= 0), steps=steps,
+            found=self.maps.targets[mine].any(axis=0), visited=self.visited[r].copy(),
+            reachable=p.grid.reachable_from(self.starts[r]) & p.grid.accessible, collisions=int(self.collisions[r]),
+            obstacle_collisions=int(self.obstacle_collisions[r]), rounds=int(self.rounds[r]),
+            failed_robots=int((~self.alive[mine]).sum()))
+        return SearchOutcome(run_results(record, p.grid, p.r_st), record.visited, steps)
 
 
 def check_batch(problems: list[SearchProblem], algorithm: Algorithm) -> None:
     """Raise ``ConfigError`` for LFP in situation 2 or for runs that do not share one area."""
-    from ..core.errors import ConfigError
-
     if algorithm is Algorithm.LFP and problems[0].situation == 2:
         raise ConfigError("algorithm: expected proposed, rule1 or ru in situation 2 (LFP keeps no map for stop rule (4)), received 'lfp'")
     first = problems[0]
@@ -363,7 +389,7 @@ def check_batch(problems: list[SearchProblem], algorithm: Algorithm) -> None:
             raise ConfigError("problems: expected runs on one grid with the same robots and targets, received a mixed batch")
 
 
-def run_search(problem: SearchProblem, algorithm: Algorithm | str, seed: int, record: bool = False) -> SearchOutcome:
+def run_search(problem: SearchProblem, algorithm: Algorithm | str, seed: int) -> SearchOutcome:
     """Simulate one search run of ``algorithm`` on ``problem`` with per-robot streams from ``seed``.
 
     Raises
@@ -371,9 +397,7 @@ def run_search(problem: SearchProblem, algorithm: Algorithm | str, seed: int, re
     ConfigError
         For LFP in situation 2 (LFP keeps no map, so stop rule (4) has no meaning).
     """
-    algorithm = Algorithm(algorithm)
-    check_batch([problem], algorithm)
-    return SearchBatch([problem], algorithm, [int(seed)], record).run()[0]
+    return SearchBatch([problem], Algorithm(algorithm), [int(seed)]).run()[0]
 
 
 def run_search_batch(problems: list[SearchProblem], algorithm: Algorithm | str, seeds: list[int]) -> list[SearchOutcome]:
@@ -383,10 +407,109 @@ def run_search_batch(problems: list[SearchProblem], algorithm: Algorithm | str, 
     runs with seed ``seeds[k]``; each outcome equals ``run_search(problems[k], algorithm,
     seeds[k])`` exactly. Nothing is recorded.
     """
-    algorithm = Algorithm(algorithm)
     if len(problems) != len(seeds) or not problems:
-        from ..core.errors import ConfigError
-
         raise ConfigError(f"seeds: expected one seed per problem ({len(problems)}), received {len(seeds)}")
-    check_batch(problems, algorithm)
-    return SearchBatch(problems, algorithm, [int(s) for s in seeds], False).run()
+    return SearchBatch(problems, Algorithm(algorithm), [int(s) for s in seeds]).run()
+
+
+# -- the family's entry point: spec -> problem -> recorded run -> Trace ---------------------
+@lru_cache(maxsize=32)
+def cached_sensing(grid: Grid, targets: tuple, r_so: float, r_st: float) -> SensingTables:
+    """The sensing tables of a grid and target set (:func:`.sensing.build_sensing`, once per process)."""
+    return build_sensing(grid, np.asarray(targets, dtype=float).reshape(-1, 2), r_so, r_st)
+
+
+@lru_cache(maxsize=32)
+def border_vertices(grid: Grid) -> np.ndarray:
+    """:meth:`.grids.Grid.border_vertices` (Assumption 2.2's start vertices), once per grid."""
+    border = grid.border_vertices()
+    border.flags.writeable = False
+    return border
+
+
+def start_vertices(spec: Spec, grid: Grid, seed: int) -> np.ndarray:
+    """Start vertex ids (Assumption 2.2): the given starts, or distinct random border vertices
+    drawn from the stream ``(seed, "search-starts")``."""
+    if spec.robots.starts is not None:
+        return grid.nearest_vertex(np.asarray(spec.robots.starts, dtype=float))[0]
+    border = border_vertices(grid)
+    return np.sort(keyed_generator(seed, "search-starts").choice(border, size=spec.robots.count, replace=False))
+
+
+def failure_steps(spec: Spec, seed: int) -> np.ndarray:
+    """Step at which each robot fails (``-1``: never): the listed failures, then the random
+    ones drawn from the stream ``(seed, "search-failures")``."""
+    failures = np.full(spec.robots.n, -1, dtype=np.intp)
+    for f in spec.failures:
+        failures[f.robot] = f.step
+    rf = spec.random_failures
+    if rf.count:
+        rng = keyed_generator(seed, "search-failures")
+        robots = rng.choice(spec.robots.n, size=rf.count, replace=False)
+        failures[robots] = rng.integers(0, rf.within_steps, size=rf.count)
+    return failures
+
+
+def build_problem(spec: Spec, seed: int) -> SearchProblem:
+    """Resolve a spec into a :class:`SearchProblem` for ``seed`` (start and failure draws included)."""
+    grid = spec.built_grid()
+    r = spec.ranges
+    sensing = cached_sensing(grid, tuple(map(tuple, spec.targets)), r.r_so, r.r_st)
+    return SearchProblem(grid, sensing, np.asarray(spec.targets, dtype=float).reshape(-1, 2), start_vertices(spec, grid, seed),
+                         spec.situation, r.r_so, r.r_st, r.r_c, spec.timing, failure_steps(spec, seed), spec.max_steps,
+                         spec.levy.parameters())
+
+
+def recorder_for(spec: Spec, problem: SearchProblem, progress: bool) -> Recorder:
+    """A :class:`Recorder` with the search's arrays: ``positions (n, 2)`` true vertex
+    coordinates, ``vertex (n, 1)`` ids and ``time (n, 1)`` seconds since the start."""
+    n = problem.n_robots
+    rec = Recorder(spec.max_steps, n, label=f"search · {LABELS[spec.algorithm]} · {n} robots", progress=progress)
+    rec.state("positions", (n, 2), initial=problem.grid.points[problem.starts])
+    rec.state("vertex", (n, 1), dtype=np.int64, fill=-1, initial=problem.starts[:, None])
+    rec.state("time", (n, 1), initial=0.0)
+    return rec
+
+
+def run_metadata(spec: Spec, problem: SearchProblem, outcome: SearchOutcome) -> dict:
+    """What the figures need beside the arrays: the grid, its accessible and visited
+    vertices, the targets, the starts, the ranges and the assumption report."""
+    grid = problem.grid
+    return {
+        "algorithm": spec.algorithm.value, "algorithm_label": LABELS[spec.algorithm], "situation": spec.situation,
+        "grid": grid.kind.value, "a": grid.a, "ranges": spec.ranges.model_dump(), "radius": spec.ranges.r_rob,
+        "targets": problem.targets.tolist(), "starts": problem.starts.tolist(), "grid_points": grid.points.tolist(),
+        "accessible": grid.accessible.tolist(), "visited": outcome.visited.tolist(),
+        "assumptions": spec.assumption_report().as_dict(),
+    }
+
+
+def simulate(spec: Spec, seed: int | None = None, progress: bool = False) -> Trace:
+    """Run one search (Fig. 4, steps 1–8) and return its :class:`Trace`.
+
+    Parameters
+    ----------
+    spec:
+        A validated search scenario (:class:`.spec.Spec`).
+    seed:
+        ``None`` draws one (:func:`robofleet.core.rng.resolve_seed`); the start vertices,
+        random failures and every robot's choices derive from it, and it is recorded as
+        ``trace.seed``.
+    progress:
+        Show a progress bar over the steps.
+
+    Returns
+    -------
+    Trace
+        Arrays ``positions (n_steps + 1, n_robots, 2)``, ``vertex`` and ``time``
+        ``(n_steps + 1, n_robots, 1)``, ``step_seconds``; events ``target_found``,
+        ``failure``, ``failure_detected``, ``collision``, ``obstacle_collision``, ``stop``
+        (each with the run's clock ``time``); results of :data:`.metrics.RESULTS` and
+        ``success``.
+    """
+    seed = resolve_seed(seed)
+    problem = build_problem(spec, seed)
+    rec = recorder_for(spec, problem, progress)
+    outcome = SearchBatch([problem], spec.algorithm, [seed], recorder=rec).run()[0]
+    return rec.trace("search", scenario=spec.scenario_name, seed=seed, metadata=run_metadata(spec, problem, outcome),
+                     results=outcome.results, workspace=problem.grid.workspace)

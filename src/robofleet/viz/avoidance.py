@@ -1,4 +1,16 @@
-"""Figures and animations of avoidance traces (reads traces only)."""
+"""Figures and animations of the avoidance family (paper 003, B-UAVC; Zhu, Brito &
+Alonso-Mora 2022), and the figures of its reproductions.
+
+Reads traces (arrays, metadata, workspace) and result tables only. Every kind of
+avoidance trace is drawn by the same two functions, from what the trace recorded:
+
+* 2-D runs (single and double integrators, differential drive): the workspace bounds
+  and obstacles, true discs, trails and goals; each robot's cell (B-UAVC, BVC or
+  inflated BVC, Sec. 4) when ``cell_A``/``cell_b`` were recorded; 3σ ellipses of the
+  position estimates when ``metadata["robot_cov"]`` is given; headings when recorded;
+* 3-D runs (quadrotors, mixed ground/air teams): a top view with the height as colour
+  and the yawed boxes (``metadata["boxes"]``) as their footprints.
+"""
 
 from __future__ import annotations
 
@@ -10,124 +22,270 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from matplotlib.patches import Circle, Ellipse, Polygon as PolygonPatch  # noqa: E402
-from shapely.geometry import Polygon, box  # noqa: E402
 
 from ..core.trace import Trace  # noqa: E402
 from .animation import frame_indices, save_figure, save_gif  # noqa: E402
 
+METHOD_STYLE = {"buavc": ("B-UAVC", "C0", "o"), "bvc": ("BVC", "C1", "s"), "bvc_inflated": ("BVC inflated", "C2", "^"),
+                "orca": ("ORCA", "C3", "D")}
+"""Label, colour and marker of each method in the reproduction figures."""
+TRAIL_STEPS = 60
+"""Steps of trail drawn behind each robot in an animation."""
+
+
+# -- traces --------------------------------------------------------------------------
+def is_three_d(trace: Trace) -> bool:
+    """Whether the run took place in 3-D (positions with three coordinates)."""
+    return trace.positions.shape[2] == 3
+
+
+def view_extent(trace: Trace) -> tuple[np.ndarray, np.ndarray]:
+    """Lower and upper corner of the drawn (x, y) area: the 2-D workspace, else the
+    footprint of the 3-D workspace box, else the positions with a 1 m margin."""
+    if trace.workspace is not None and not is_three_d(trace):
+        x0, y0, x1, y1 = trace.workspace.extent
+        return np.array([x0, y0]), np.array([x1, y1])
+    box = trace.metadata.get("bounds3d")
+    if box:
+        return np.array([box[0], box[1]], float), np.array([box[3], box[4]], float)
+    xy = trace.positions[..., :2]
+    return xy.min(axis=(0, 1)) - 1.0, xy.max(axis=(0, 1)) + 1.0
+
+
+def height_range(trace: Trace) -> tuple[float, float]:
+    """Floor and ceiling of a 3-D run (the workspace box, else the flown heights)."""
+    box = trace.metadata.get("bounds3d")
+    if box:
+        return float(box[2]), float(box[5])
+    z = trace.positions[..., 2]
+    return float(z.min()), float(max(z.max(), z.min() + 1e-9))
+
+
+def box_footprint(center, size, yaw: float) -> np.ndarray:
+    """Corners ``(4, 2)`` of a box's footprint: its (x, y) rectangle rotated by ``yaw``."""
+    half = 0.5 * np.asarray(size, float)[:2]
+    corners = np.array([[-1, -1], [1, -1], [1, 1], [-1, 1]]) * half
+    c, s = np.cos(yaw), np.sin(yaw)
+    return corners @ np.array([[c, -s], [s, c]]).T + np.asarray(center, float)[:2]
+
 
 def draw_workspace(ax, trace: Trace) -> None:
-    """Bounds, obstacles and goals."""
-    ws = trace.workspace
-    if ws is not None:
-        ax.add_patch(PolygonPatch(ws.bounds, closed=True, fill=False, lw=1.2, color="k"))
-        for verts in ws.obstacles:
-            ax.add_patch(PolygonPatch(verts, closed=True, color="0.35"))
-        x0, y0, x1, y1 = ws.extent
-        pad = 0.03 * max(x1 - x0, y1 - y0)
-        ax.set_xlim(x0 - pad, x1 + pad)
-        ax.set_ylim(y0 - pad, y1 + pad)
+    """Bounds and obstacles (2-D polygons, or 3-D box footprints), limits and aspect."""
+    lo, hi = view_extent(trace)
+    if trace.workspace is not None and not is_three_d(trace):
+        ax.add_patch(PolygonPatch(trace.workspace.bounds, closed=True, fill=False, lw=1.2, color="k"))
+        for vertices in trace.workspace.obstacles:
+            ax.add_patch(PolygonPatch(vertices, closed=True, color="0.35"))
+    else:
+        ax.add_patch(PolygonPatch([lo, [hi[0], lo[1]], hi, [lo[0], hi[1]]], closed=True, fill=False, lw=1.2, color="k"))
+    for box in trace.metadata.get("boxes") or []:
+        ax.add_patch(PolygonPatch(box_footprint(box["center"], box["size"], box.get("yaw", 0.0)), closed=True, color="0.35", alpha=0.8))
+    pad = 0.03 * float(max(hi - lo))
+    ax.set_xlim(lo[0] - pad, hi[0] + pad)
+    ax.set_ylim(lo[1] - pad, hi[1] + pad)
     ax.set_aspect("equal")
 
 
-def plot_paths(trace: Trace, path: str | Path | None = None, ax=None):
-    """Static figure: every robot's true path, start (○) and goal (×)."""
-    own = ax is None
-    if own:
-        fig, ax = plt.subplots(figsize=(6, 6))
+def robot_colours(trace: Trace, k: int | None = None) -> np.ndarray:
+    """RGBA colour per robot: by index in 2-D; in 3-D by the height at state ``k``
+    (viridis over :func:`height_range`; the start height when ``k`` is ``None``)."""
+    n = trace.positions.shape[1]
+    if not is_three_d(trace):
+        return plt.cm.tab20(np.linspace(0, 1, n, endpoint=False))
+    norm = plt.Normalize(*height_range(trace))
+    return plt.cm.viridis(norm(trace.positions[0 if k is None else k, :, 2]))
+
+
+def run_title(trace: Trace) -> str:
+    """``scenario · method`` of a run."""
+    parts = [str(trace.metadata.get("scenario") or ""), str(trace.metadata.get("method") or "")]
+    return " · ".join(p for p in parts if p)
+
+
+def outcome_text(trace: Trace) -> str:
+    """``success=..., collisions=...`` from the run's results (what was recorded)."""
+    summary = trace.summary()
+    keys = [k for k in ("success", "collisions", "obstacle_collisions") if k in summary]
+    return ", ".join(f"{k}={summary[k]}" for k in keys)
+
+
+def plot_trace(trace: Trace, path: str | Path) -> Path:
+    """Static figure of a run: every robot's true path, start (○) and goal (×).
+
+    3-D runs are drawn from above (the title says so), with the box footprints.
+    """
+    fig, ax = plt.subplots(figsize=(6, 6))
     draw_workspace(ax, trace)
     pos = trace.positions
-    goals = np.asarray(trace.metadata["goals"])
-    colors = plt.cm.tab20(np.linspace(0, 1, pos.shape[1], endpoint=False))
+    goals = np.asarray(trace.metadata["goals"], float)
+    colours = plt.cm.tab20(np.linspace(0, 1, pos.shape[1], endpoint=False))
     for i in range(pos.shape[1]):
-        ax.plot(pos[:, i, 0], pos[:, i, 1], color=colors[i], lw=1)
-        ax.plot(*pos[0, i], "o", color=colors[i], ms=4)
-        ax.plot(*goals[i], "x", color=colors[i], ms=6)
-    summary = trace.summary()
-    ax.set_title(f"{trace.metadata.get('method', '')}: success={summary['success']}, collisions={summary['collisions']}")
-    if own and path is not None:
-        fig.savefig(path, dpi=120, bbox_inches="tight")
-        plt.close(fig)
-    return ax
+        ax.plot(pos[:, i, 0], pos[:, i, 1], color=colours[i], lw=1)
+        ax.plot(*pos[0, i, :2], "o", color=colours[i], ms=4)
+        ax.plot(*goals[i, :2], "x", color=colours[i], ms=6)
+    ax.set_title(f"{run_title(trace)}: {outcome_text(trace)}" + (" (top view)" if is_three_d(trace) else ""), fontsize=9)
+    return save_figure(fig, path)
 
 
-def cell_polygon(A: np.ndarray, b: np.ndarray, clip) -> Polygon:
-    """Polygon of ``{p : A p ≤ b}`` clipped to ``clip`` (a shapely polygon)."""
-    poly = clip
-    for a, off in zip(A, b):
-        if not np.any(a):
-            continue
-        # a half-plane as a large polygon: points with a·p ≤ off
-        t = np.array([-a[1], a[0]])
-        base = a * off
-        far = 1e4
-        half = Polygon([base + far * t, base - far * t, base - far * t - far * a, base + far * t - far * a])
-        poly = poly.intersection(half)
-        if poly.is_empty:
+# -- cells and uncertainty -------------------------------------------------------------
+def clip_halfplane(polygon: np.ndarray, a: np.ndarray, b: float) -> np.ndarray:
+    """Sutherland–Hodgman clip of a convex polygon ``(k, 2)`` by ``{p : a·p ≤ b}``."""
+    out = []
+    for p, q in zip(polygon, np.roll(polygon, -1, axis=0)):
+        fp, fq = a @ p - b, a @ q - b
+        if fp <= 0:
+            out.append(p)
+        if fp * fq < 0:
+            out.append(p + (q - p) * fp / (fp - fq))
+    return np.array(out).reshape(-1, 2)
+
+
+def cell_polygon(A: np.ndarray, b: np.ndarray, clip: np.ndarray) -> np.ndarray:
+    """Vertices of the cell ``{p : A p ≤ b}`` (Eq. 13: the intersection of the robot's
+    half-planes) inside the convex polygon ``clip``; rows with ``a = 0`` are padding."""
+    polygon = np.asarray(clip, float)
+    for a, offset in zip(A, b):
+        if np.any(a):
+            polygon = clip_halfplane(polygon, a, offset)
+        if len(polygon) < 3:
             break
-    return poly
+    return polygon
+
+
+def clip_region(trace: Trace) -> np.ndarray:
+    """The convex polygon cells are drawn in: the 2-D workspace bounds, else the view box."""
+    if trace.workspace is not None and not is_three_d(trace):
+        return np.asarray(trace.workspace.bounds, float)
+    lo, hi = view_extent(trace)
+    return np.array([lo, [hi[0], lo[1]], hi, [lo[0], hi[1]]], float)
+
+
+def uncertainty_ellipse(cov: np.ndarray, k: float) -> tuple[float, float, float]:
+    """Width, height and angle (degrees) of the k-σ ellipse of a 2×2 covariance."""
+    values, vectors = np.linalg.eigh(np.asarray(cov, float))
+    values = np.maximum(values, 0.0)
+    angle = float(np.degrees(np.arctan2(vectors[1, 1], vectors[0, 1])))
+    return 2 * k * float(np.sqrt(values[1])), 2 * k * float(np.sqrt(values[0])), angle
+
+
+def draw_heading(ax, position: np.ndarray, heading: float, radius: float) -> None:
+    """An arrow of length 1.8 r along ``heading`` from the robot's centre."""
+    ax.arrow(position[0], position[1], 1.8 * radius * np.cos(heading), 1.8 * radius * np.sin(heading),
+             head_width=0.4 * radius, color="k", lw=0.8, length_includes_head=True)
 
 
 def animate_trace(trace: Trace, path: str | Path, fps: int = 10, max_frames: int = 150) -> Path:
-    """GIF of robots (true discs), estimates, 3σ uncertainty ellipses, goals and, when the
-    trace recorded them, every robot's cell."""
-    pos, est = trace.positions, trace.arrays["estimates"]
-    goals = np.asarray(trace.metadata["goals"])
+    """GIF of a run: true discs with trails and goals; each robot's cell when recorded,
+    3σ ellipses of its estimate when ``robot_cov`` is known, headings when recorded;
+    3-D runs from above with the height as colour."""
+    pos = trace.positions
     radius = float(trace.metadata["radius"])
-    cov = np.asarray(trace.metadata.get("robot_cov", np.zeros((2, 2))))
-    has_cells = "cell_A" in trace.arrays
-    clip = Polygon(trace.workspace.bounds) if trace.workspace is not None else box(*pos.reshape(-1, 2).min(0), *pos.reshape(-1, 2).max(0))
-    n = pos.shape[1]
-    colors = plt.cm.tab20(np.linspace(0, 1, n, endpoint=False))
-    w, h, ang = _ellipse(cov, 3.0)
-    fig, ax = plt.subplots(figsize=(6, 6))
     dt = float(trace.metadata["dt"])
+    goals = np.asarray(trace.metadata["goals"], float)
+    estimates = trace.arrays.get("estimates")
+    headings = trace.arrays.get("headings")
+    cells = (trace.arrays["cell_A"], trace.arrays["cell_b"]) if "cell_A" in trace.arrays and "cell_b" in trace.arrays else None
+    cov = trace.metadata.get("robot_cov")
+    ellipse = uncertainty_ellipse(cov, 3.0) if cov is not None and not is_three_d(trace) else None
+    clip = clip_region(trace)
+    fig, ax = plt.subplots(figsize=(6, 6))
+    if is_three_d(trace):
+        mappable = plt.cm.ScalarMappable(norm=plt.Normalize(*height_range(trace)), cmap="viridis")
+        fig.colorbar(mappable, ax=ax, label="height z [m]", shrink=0.8)
 
     def update(k: int):
         ax.clear()
         draw_workspace(ax, trace)
-        step = min(k, len(est) - 1)
-        for i in range(n):
-            if has_cells:
-                poly = cell_polygon(trace.arrays["cell_A"][step, i], trace.arrays["cell_b"][step, i], clip)
-                if not poly.is_empty and poly.geom_type == "Polygon":
-                    ax.add_patch(PolygonPatch(np.asarray(poly.exterior.coords), closed=True, fc=colors[i], alpha=0.15, ec=colors[i], lw=0.6))
-            ax.plot(pos[: k + 1, i, 0], pos[: k + 1, i, 1], color=colors[i], lw=0.6, alpha=0.6)
-            ax.add_patch(Circle(pos[k, i], radius, color=colors[i]))
-            if len(est) and w > 0:
-                ax.add_patch(Ellipse(est[step, i], w, h, angle=ang, fill=False, ec=colors[i], ls="--", lw=0.6))
-            ax.plot(*goals[i], "x", color=colors[i])
-        ax.set_title(f"{trace.metadata.get('method', '')}  t = {k * dt:.1f} s")
+        colours = robot_colours(trace, k) if is_three_d(trace) else robot_colours(trace)
+        trail = pos[max(0, k - TRAIL_STEPS): k + 1]
+        for i in range(pos.shape[1]):
+            if cells is not None and len(cells[0]):
+                step = min(k, len(cells[0]) - 1)
+                polygon = cell_polygon(cells[0][step, i], cells[1][step, i], clip)
+                if len(polygon) >= 3:
+                    ax.add_patch(PolygonPatch(polygon, closed=True, fc=colours[i], alpha=0.15, ec=colours[i], lw=0.6))
+            ax.plot(trail[:, i, 0], trail[:, i, 1], color=colours[i], lw=0.6, alpha=0.6)
+            ax.add_patch(Circle(pos[k, i, :2], radius, color=colours[i], alpha=0.85))
+            if ellipse is not None and estimates is not None and len(estimates):
+                centre = estimates[min(k, len(estimates) - 1), i, :2]
+                ax.add_patch(Ellipse(centre, ellipse[0], ellipse[1], angle=ellipse[2], fill=False, ec=colours[i], ls="--", lw=0.6))
+            if headings is not None and np.isfinite(headings[k, i]):
+                draw_heading(ax, pos[k, i], float(headings[k, i]), radius)
+            ax.plot(*goals[i, :2], "x", color=colours[i])
+        ax.set_title(f"{run_title(trace)}  t = {k * dt:.1f} s", fontsize=9)
 
     return save_gif(fig, update, frame_indices(len(pos), max_frames), path, fps)
 
 
-def _ellipse(cov: np.ndarray, k: float):
-    """Width, height and angle (degrees) of the k-σ ellipse of a 2×2 covariance."""
-    vals, vecs = np.linalg.eigh(cov)
-    vals = np.maximum(vals, 0.0)
-    angle = float(np.degrees(np.arctan2(vecs[1, 1], vecs[0, 1])))
-    return 2 * k * np.sqrt(vals[1]), 2 * k * np.sqrt(vals[0]), angle
+# -- reproduction figures -----------------------------------------------------------------
+def plot_buavc_comparison(noise, delta, path: str | Path) -> Path:
+    """Four panels of ``robofleet reproduce buavc``: runs with a collision, success rate and
+    travel time against σ per method, and B-UAVC's pooled per-pair-per-step collision
+    rate (with its 95 % upper bound) against δ and the bound y = δ of Eq. (12).
 
-
-def plot_reproduction(noise, delta, path: str | Path) -> Path:
-    """Four panels: run collision rate, success and travel time against σ per method, and
-    the per-step pair collision rate of B-UAVC against δ (with the bound y = δ)."""
+    ``noise`` has columns ``method, sigma, run_collided, success, mean_travel_time``;
+    ``delta`` has ``delta, pair_step_pooled, pair_step_upper``.
+    """
     fig, axes = plt.subplots(1, 4, figsize=(17, 3.8))
-    for method, grp in noise.groupby("method"):
-        axes[0].plot(grp["sigma"], grp["run_collided"], "o-", label=method)
-        axes[1].plot(grp["sigma"], grp["success"], "o-", label=method)
-        axes[2].plot(grp["sigma"], grp["mean_travel_time"], "o-", label=method)
+    for method, group in noise.groupby("method"):
+        label, colour, marker = METHOD_STYLE.get(method, (method, "k", "x"))
+        group = group.sort_values("sigma")
+        for ax, column in zip(axes[:3], ("run_collided", "success", "mean_travel_time")):
+            ax.plot(group["sigma"], group[column], marker=marker, color=colour, label=label)
     axes[0].set(xlabel="σ [m]", ylabel="runs with a collision", title="collisions vs noise")
     axes[1].set(xlabel="σ [m]", ylabel="success rate", title="success vs noise")
     axes[2].set(xlabel="σ [m]", ylabel="mean travel time [s]", title="travel time vs noise")
     axes[0].legend()
-    d = delta["delta"].to_numpy()
-    pooled = delta["pair_step_pooled"].to_numpy()
+    d = delta["delta"].to_numpy(float)
+    pooled = delta["pair_step_pooled"].to_numpy(float)
     seen = pooled > 0
     axes[3].loglog(d[seen], pooled[seen], "o", label="B-UAVC, observed per pair and step")
-    axes[3].loglog(d, delta["pair_step_upper"].to_numpy(), "v-", label="95 % upper bound of the observed rate")
+    axes[3].loglog(d, delta["pair_step_upper"].to_numpy(float), "v-", label="95 % upper bound of the observed rate")
     axes[3].loglog(d, d, "k--", label="bound δ")
     axes[3].set(xlabel="δ", ylabel="empirical collision probability", title="chance constraint")
     axes[3].legend(fontsize=7)
+    return save_figure(fig, path, tight=True)
+
+
+def plot_models_noise(noise, path: str | Path) -> Path:
+    """``robofleet reproduce buavc-models``: per robot model (columns), the share of runs
+    with a collision (top) and the success rate (bottom) against σ, one line per method.
+
+    ``noise`` has columns ``model, method, sigma, run_collided, success``.
+    """
+    models = list(dict.fromkeys(noise["model"]))
+    fig, axes = plt.subplots(2, max(1, len(models)), figsize=(3.2 * max(1, len(models)), 5.6), squeeze=False)
+    for col, model in enumerate(models):
+        for method, group in noise[noise["model"] == model].groupby("method"):
+            label, colour, marker = METHOD_STYLE.get(method, (method, "k", "x"))
+            group = group.sort_values("sigma")
+            axes[0, col].plot(group["sigma"], 100 * group["run_collided"].astype(float), marker=marker, color=colour, label=label)
+            axes[1, col].plot(group["sigma"], 100 * group["success"].astype(float), marker=marker, color=colour, label=label)
+        axes[0, col].set_title(model.replace("_", " "))
+        axes[1, col].set_xlabel("σ [m]")
+    for ax in axes.ravel():
+        ax.set_ylim(-5, 105)
+    axes[0, 0].set_ylabel("runs with a collision [%]")
+    axes[1, 0].set_ylabel("success [%]")
+    if models:
+        axes[0, 0].legend(fontsize=7)
+    return save_figure(fig, path, tight=True)
+
+
+def plot_models_delta(delta, path: str | Path, floor: float = 1e-7) -> Path:
+    """``robofleet reproduce buavc-models``: B-UAVC's mean per-step pair collision rate
+    against δ per model, with the bound y = δ; rates of 0 are drawn at ``floor``.
+
+    ``delta`` has columns ``model, delta, pair_step_rate``.
+    """
+    fig, ax = plt.subplots(figsize=(4.5, 3.6))
+    for model, group in delta.groupby("model"):
+        group = group.sort_values("delta")
+        ax.plot(group["delta"], np.maximum(group["pair_step_rate"].to_numpy(float), floor), marker="o", label=model.replace("_", " "))
+    d = np.array(sorted(delta["delta"].unique()), float)
+    ax.plot(d, d, "k--", label="bound δ")
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set(xlabel="δ", ylabel="pair collision rate per step", title=f"chance constraint (0 drawn at {floor:g})")
+    ax.legend(fontsize=7)
     return save_figure(fig, path, tight=True)

@@ -1,7 +1,9 @@
 """Plots and animations of the coordination family (paper 000): Fig. 6 panels, the map with
-planned trajectories (Fig. 1) and an animation of a run (waiting robots highlighted).
+planned trajectories and a run's final state (Fig. 1), and an animation of a run (waiting
+robots highlighted).
 
-Reads result tables and traces only; never imports an algorithm.
+Reads result tables and traces only (``robofleet.core`` and matplotlib); never imports an
+algorithm. ``plot_trace`` and ``animate_trace`` take any coordination trace.
 """
 
 from __future__ import annotations
@@ -13,7 +15,6 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
-import pandas as pd  # noqa: E402
 from matplotlib.patches import Circle, Polygon as PolygonPatch  # noqa: E402
 
 from ..core.trace import Trace  # noqa: E402
@@ -33,13 +34,17 @@ STYLES = {
 }
 
 
-def plot_fig6(summary: pd.DataFrame, path: str | Path) -> Path:
-    """Four panels of Fig. 6 from the per-(robot count, variant) summary table."""
+def plot_fig6(summary, path: str | Path) -> Path:
+    """Four panels of Fig. 6 from the per-(robot count, variant) summary table.
+
+    ``summary`` (a pandas DataFrame) has columns ``n_robots``, ``variant`` and the panels' columns
+    (``mean_travel_time``, ``decision_ms_per_test``, ``flips``, ``finished_share``).
+    """
     fig, axes = plt.subplots(2, 2, figsize=(11, 8))
     for ax, (column, title) in zip(axes.ravel(), PANELS):
-        for variant, g in summary.groupby("variant", observed=True):
+        for variant in summary["variant"].drop_duplicates():  # in the table's order
             color, line, marker = STYLES.get(str(variant), ("k", "-", "."))
-            g = g.sort_values("n_robots")
+            g = summary[summary["variant"] == variant].sort_values("n_robots")
             ax.plot(g["n_robots"], g[column], color=color, linestyle=line, marker=marker, label=str(variant))
         ax.set_title(title)
         ax.set_xlabel("number of robots")
@@ -71,16 +76,39 @@ def draw_workspace(ax, workspace: Workspace) -> None:
     ax.set_facecolor("0.85")
 
 
-def plot_plan(trace: Trace, path: str | Path) -> Path:
-    """The map with the planned trajectories (dotted) and the starts, like Fig. 1."""
+def plot_trace(trace: Trace, path: str | Path) -> Path:
+    """The map with the planned trajectories (dotted), the starts (hollow discs) and the
+    robots where the run ended (green finished, orange waiting, red deadlocked, blue moving)."""
     fig, ax = plt.subplots(figsize=(8, 6.6))
     draw_workspace(ax, trace.workspace)
     _draw_plan(ax, trace)
-    pos = trace.positions[0]
-    for p in pos:
-        ax.add_patch(Circle(p, trace.metadata["radius"], color="tab:blue"))
-    ax.set_title(f"{trace.metadata['n_robots']} robots, planned trajectories")
+    radius = float(trace.metadata["radius"])
+    for p in trace.positions[0]:
+        ax.add_patch(Circle(p, radius, fill=False, edgecolor="tab:blue", lw=0.8))
+    colors = final_colors(trace)
+    for p, color in zip(trace.positions[-1], colors):
+        ax.add_patch(Circle(p, radius, color=color, zorder=3))
+    ax.set_title(outcome_title(trace))
     return save_figure(fig, path, dpi=110)
+
+
+def final_colors(trace: Trace) -> list[str]:
+    """Each robot's colour in the last recorded row: finished, deadlocked, waiting or moving."""
+    n = trace.positions.shape[1]
+    finished = trace.arrays.get("arrival_steps", np.full(n, -1)) >= 0
+    waiting = trace.arrays.get("waiting", np.zeros((1, n, 1), bool))[-1, :, 0]
+    deadlocked = {r for e in trace.events if e.get("kind") == "deadlock" for r in e.get("robots", [])}
+    return ["tab:green" if finished[i] else "tab:red" if i in deadlocked else "tab:orange" if waiting[i] else "tab:blue"
+            for i in range(n)]
+
+
+def outcome_title(trace: Trace) -> str:
+    """``method · n robots · outcome`` from the trace's metadata and results."""
+    r, md = trace.results, trace.metadata
+    outcome = "deadlock" if r.get("deadlock") else "finished" if r.get("finished") else "step budget spent"
+    travel = r.get("mean_travel_time")
+    tail = f", mean travel time {travel:.1f} s" if isinstance(travel, float) and np.isfinite(travel) else ""
+    return f"{md.get('method', '')} · {md.get('n_robots', trace.positions.shape[1])} robots · {outcome}{tail} · {r.get('flips', 0)} flips"
 
 
 def _draw_plan(ax, trace: Trace) -> None:

@@ -1,6 +1,9 @@
 """Plots and animations of the flocking family (paper 001, Figs. 9-11).
 
-Reads traces (leader at index 0 of ``positions``) and result tables only.
+Reads traces and result tables only (imports :mod:`robofleet.core` pieces and matplotlib,
+never the family): ``positions`` holds the leader at index 0, ``estimated_target`` the
+slots of the estimated target 𝒯^{φ_B(t)} at every sample, ``leader_heading``, ``time``,
+``delta_e`` and ``delta_r`` the rest of what is drawn.
 """
 
 from __future__ import annotations
@@ -14,6 +17,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
+from ..core.trace import Trace  # noqa: E402
 from .animation import frame_indices, save_figure, save_gif  # noqa: E402
 
 
@@ -46,7 +50,7 @@ def plot_delta_curves(curves: pd.DataFrame, path: str | Path) -> Path:
     return save_figure(fig, path, dpi=110)
 
 
-def plot_trace(trace, path: str | Path, title: str | None = None) -> Path:
+def plot_trace(trace: Trace, path: str | Path, title: str | None = None) -> Path:
     """Figs. 9-10: courses of the leader (black) and followers, start (○) and end (●) positions."""
     pos = trace.positions
     fig, ax = plt.subplots(figsize=(6.5, 6.5))
@@ -58,7 +62,7 @@ def plot_trace(trace, path: str | Path, title: str | None = None) -> Path:
     _leader_marker(ax, pos[-1, 0], trace.arrays["leader_heading"][-1])
     ax.set_aspect("equal")
     r = trace.results
-    ax.set_title(title or f"{trace.metadata.get('name', '')}: Δe={r['delta_e_final']:.2f}, Δr={r['delta_r_final']:.2f}, ξ={r['xi']:.2f}", fontsize=9)
+    ax.set_title(title or f"{trace.scenario}: Δe={r['delta_e_final']:.2f}, Δr={r['delta_r_final']:.2f}, ξ={r['xi']:.2f}", fontsize=9)
     ax.legend(fontsize=7, loc="best")
     return save_figure(fig, path, dpi=110)
 
@@ -85,13 +89,10 @@ def plot_comparison(table: pd.DataFrame, path: str | Path) -> Path:
     return save_figure(fig, path, dpi=110)
 
 
-def animate_trace(trace, path: str | Path, fps: int = 15, max_frames: int = 150, tail: int = 60) -> Path:
+def animate_trace(trace: Trace, path: str | Path, fps: int = 15, max_frames: int = 150, tail: int = 60) -> Path:
     """GIF of a run: leader (triangle), followers with trails, the slots of the estimated target."""
-    from ..flocking.metrics import estimated_target
-    from ..flocking.patterns import Pattern
-
     pos = trace.positions
-    pattern = Pattern(np.asarray(trace.metadata["pattern"], dtype=float))
+    targets = trace.arrays["estimated_target"]
     times = trace.arrays["time"]
     frames = frame_indices(len(pos), max_frames)
     lo, hi = pos.reshape(-1, 2).min(axis=0) - 20, pos.reshape(-1, 2).max(axis=0) + 20
@@ -105,8 +106,7 @@ def animate_trace(trace, path: str | Path, fps: int = 15, max_frames: int = 150,
         start = max(0, k - tail)
         for i in range(pos.shape[1]):
             ax.plot(pos[start:k + 1, i, 0], pos[start:k + 1, i, 1], lw=0.7, color="k" if i == 0 else f"C{i % 10}")
-        slots = estimated_target(pattern, pos[k, 0], pos[k, 1:])
-        ax.scatter(slots[:, 0], slots[:, 1], facecolors="none", edgecolors="0.5", s=40)
+        ax.scatter(targets[k, :, 0], targets[k, :, 1], facecolors="none", edgecolors="0.5", s=40)
         ax.scatter(pos[k, 1:, 0], pos[k, 1:, 1], c=[f"C{i % 10}" for i in range(1, pos.shape[1])], s=18)
         _leader_marker(ax, pos[k, 0], trace.arrays["leader_heading"][k])
         ax.set_title(f"t = {times[k]:.0f}   Δe = {trace.arrays['delta_e'][k]:.1f}   Δr = {trace.arrays['delta_r'][k]:.1f}", fontsize=9)

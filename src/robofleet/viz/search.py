@@ -1,7 +1,9 @@
 """Plots and animations of the ``search`` family (paper 002).
 
-Reads traces and result tables only: Fig. 7 (mean search time with 95 % CIs),
-route plots like Figs. 5–6, the coverage study, and :func:`animate_trace`.
+Reads traces and result tables only: :func:`plot_trace` (the routes, like Fig. 5),
+:func:`plot_routes` (Figs. 5–6), :func:`animate_trace`, and from the reproduction's
+tables Fig. 7 (:func:`plot_fig7`, mean search time with 95 % CIs) and the coverage study
+(:func:`plot_coverage_ranges`).
 """
 
 from __future__ import annotations
@@ -105,6 +107,11 @@ def plot_routes(trace: Trace, path: str | Path, robots: list[int] | None = None,
                           f"search time {res.get('search_time', float('nan')):.1f} s")
     ax.legend(loc="upper right", fontsize=7)
     return save_figure(fig, path, dpi=130, tight=True)
+
+
+def plot_trace(trace: Trace, path: str | Path) -> Path:
+    """The routes of every robot of a run over the area and its grid (Fig. 5)."""
+    return plot_routes(trace, path)
 
 
 def animate_trace(trace: Trace, path: str | Path, fps: int = 6, max_frames: int = 150) -> Path:

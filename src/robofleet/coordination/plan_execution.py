@@ -1,0 +1,305 @@
+"""Discrete-step execution of a plan under disturbances (paper 000, "Problem Statement").
+
+Each step every robot chooses ``a_i(t)`` by RMTRACK (Eq. 1), possibly after flip tests
+(TFF/TFA, optionally guarded by the segment-graph cycle test); the disturbance
+``δ_i(t) = 0`` with the probability of the region the robot stands in; then
+``x_i(t + 1) = x_i(t) + a_i(t) δ_i(t)``. A run ends when every robot is finished, on a
+deadlock (Definition 1: at least one robot waiting and none moving) or after
+``max_steps``. Positions are checked for collisions (``‖p_i − p_j‖ < 2r``) every step.
+
+Disturbances come from one random stream per ``(seed, robot, step)`` (drawn in blocks of
+``DISTURBANCE_BLOCK`` steps per robot, keyed by ``(seed, robot, block)``), so every method
+run with the same seed sees exactly the same disturbances: a paired comparison.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from enum import Enum
+from typing import Callable
+
+import numpy as np
+
+from ..core.rng import keyed_generator
+from .coordination_space import CoordinationSpace
+from .label_flipping import FlipContext, KnownProbabilities, LearnedProbabilities, flip_eligible, tfa_wants_flip, tff_wants_flip
+from .rmtrack import ActionRule
+from .segment_graph import IncrementalCycleDetector, Resolution, SegmentLayout, build_segment_layout, has_cycle_full
+from .trajectories import Trajectories
+
+DISTURBANCE_BLOCK = 256
+
+
+class Method(str, Enum):
+    """Execution policy: plain RMTRACK or RMTRACK with a flip test."""
+
+    RMTRACK = "rmtrack"
+    TFF = "tff"
+    TFA = "tfa"
+
+
+class Estimate(str, Enum):
+    """Where the flip tests' disturbance probabilities come from."""
+
+    KNOWN = "known"
+    LEARNED = "learned"
+
+
+METHOD_NAMES = {Method.RMTRACK: "RMTRACK", Method.TFF: "RMTRACK+TFF", Method.TFA: "RMTRACK+TFA"}
+FLIP_TESTS: dict[Method, Callable[[FlipContext], bool]] = {Method.TFF: tff_wants_flip, Method.TFA: tfa_wants_flip}
+
+
+@dataclass(frozen=True)
+class Variant:
+    """One of the six method variants of Fig. 6."""
+
+    method: Method
+    deadlock_check: bool
+
+    @property
+    def name(self) -> str:
+        return METHOD_NAMES[self.method] + (" (checked)" if self.deadlock_check else "")
+
+
+ALL_VARIANTS = tuple(Variant(m, c) for m in Method for c in (False, True))
+
+
+class DisturbanceStream:
+    """Uniform draws ``u_i(t)``, one stream per ``(seed, robot, step)``; robot disturbed iff ``u < p``."""
+
+    def __init__(self, seed: int, n_robots: int):
+        self.seed, self.n = int(seed), n_robots
+        self._blocks: dict[int, np.ndarray] = {}
+
+    def uniforms(self, step: int) -> np.ndarray:
+        block = step // DISTURBANCE_BLOCK
+        if block not in self._blocks:
+            self._blocks[block] = np.stack(
+                [keyed_generator(self.seed, "disturbance", robot, block).random(DISTURBANCE_BLOCK) for robot in range(self.n)], axis=1
+            )
+        return self._blocks[block][step % DISTURBANCE_BLOCK]
+
+
+@dataclass
+class Execution:
+    """What one execution recorded.
+
+    ``progress`` ``(T + 1, n)``: ``x_i(t)``; ``waiting`` ``(T + 1, n)``: state at each step
+    (the last row repeats the final state). ``decision_seconds``: wall time spent in flip
+    tests and cycle checks.
+    """
+
+    progress: np.ndarray
+    waiting: np.ndarray
+    events: list[dict]
+    labels: np.ndarray
+    deadlock: bool
+    finished: bool
+    collisions: int
+    flips: int
+    refused_flips: int
+    flip_tests: int
+    decision_seconds: float
+    arrival_steps: np.ndarray
+    cycle_log: list = field(default_factory=list)
+
+    @property
+    def n_steps(self) -> int:
+        return int(len(self.progress) - 1)
+
+
+@dataclass(frozen=True)
+class Decision:
+    """Eq. 1 at one step: the ``waiting``, ``moving`` and ``finished`` masks ``(n,)``."""
+
+    waiting: np.ndarray
+    moving: np.ndarray
+    finished: np.ndarray
+
+    @property
+    def deadlocked(self) -> bool:
+        """Definition 1: some robot waiting, none moving."""
+        return bool(self.waiting.any() and not self.moving.any())
+
+    @property
+    def stop(self) -> bool:
+        """The run ends here: every robot finished, or a deadlock."""
+        return bool(self.finished.all()) or self.deadlocked
+
+
+@dataclass
+class ExecutionState:
+    """What changes during one execution: progress ``x``, labels, flip bookkeeping, statistics."""
+
+    x: np.ndarray
+    labels: np.ndarray
+    tried: np.ndarray
+    detector: IncrementalCycleDetector | None
+    stream: DisturbanceStream
+    rule: ActionRule
+    arrival: np.ndarray
+    events: list[dict]
+    stats: dict = field(default_factory=lambda: {"flips": 0, "refused": 0, "tests": 0, "seconds": 0.0, "collisions": 0})
+    deadlock: bool = False
+    cycle_log: list = field(default_factory=list)
+
+
+@dataclass
+class PlanExecutor:
+    """Runs one variant on one plan.
+
+    Parameters
+    ----------
+    traj, space: the plan and its coordination space.
+    variant: method and whether flips are guarded by the segment-graph cycle test.
+    times: expected-time model for the flip tests (known or learned probabilities).
+    probability: ``(n, K_max + 1)`` true disturbance probability at each plan step.
+    layout: segment layout (built on demand when the check is on).
+    flip_test: override of the flip test (tests use it to inject arbitrary flips).
+    detector: the cycle-test class (``IncrementalCycleDetector``; tests and benchmarks pass
+        a subclass that checks or times each answer against the full reference).
+    disturbed: override ``disturbed(step, progress) -> bool (n,)`` of the random disturbances.
+    observe_cells: ``(n, K_max + 1)`` map cells for a learned estimate.
+    """
+
+    traj: Trajectories
+    space: CoordinationSpace
+    variant: Variant
+    times: KnownProbabilities | LearnedProbabilities
+    probability: np.ndarray
+    layout: SegmentLayout | None = None
+    resolution: Resolution = Resolution.EXACT
+    flip_test: Callable[[FlipContext], bool] | None = None
+    detector: type[IncrementalCycleDetector] = IncrementalCycleDetector
+    disturbed: Callable[[int, np.ndarray], np.ndarray] | None = None
+    observe_cells: np.ndarray | None = None
+    record_cycles: bool = False
+
+    def run(self, seed: int, max_steps: int) -> Execution:
+        """Execute until all robots finish, a deadlock or ``max_steps``.
+
+        The loop of :meth:`start`, :meth:`decide` and :meth:`move`, collecting the rows in
+        memory; :func:`robofleet.coordination.simulation.simulate` drives the same steps
+        through the core recorder instead.
+        """
+        state = self.start(seed)
+        rows_x, rows_wait = [state.x.copy()], []
+        for t in range(max_steps):
+            decision = self.decide(state, t)
+            rows_wait.append(decision.waiting)
+            if decision.stop:
+                break
+            self.move(state, decision, t)
+            rows_x.append(state.x.copy())
+        else:
+            rows_wait.append(self.settle(state).waiting)
+        self.conclude(state, len(rows_x) - 1)
+        return self.execution(state, np.array(rows_x), np.array(rows_wait[: len(rows_x)]))
+
+    def start(self, seed: int, events: list[dict] | None = None) -> ExecutionState:
+        """The state at ``t = 0``: plan labels, everybody at step 0; ``events`` collects the run's events."""
+        n = self.traj.n_robots
+        labels = self.space.initial_labels.copy()
+        return ExecutionState(
+            x=np.zeros(n, dtype=np.intp), labels=labels, tried=np.zeros(self.space.n_obstacles, dtype=bool),
+            detector=self._detector(labels), stream=DisturbanceStream(seed, n), rule=ActionRule(self.space),
+            arrival=np.where(self.traj.lengths == 0, 0, -1), events=[] if events is None else events,
+        )
+
+    def decide(self, state: ExecutionState, t: int) -> Decision:
+        """Step ``t``'s decisions: flip tests (TFF/TFA), then Eq. 1; flags a deadlock (Definition 1)."""
+        if self.variant.method is not Method.RMTRACK:
+            self._flip_round(state.rule, state.labels, state.x, state.tried, state.detector, state.stats, state.events, t)
+        waiting, moving, finished = state.rule.states(state.labels, state.x)
+        if self.record_cycles:
+            state.cycle_log.append(self._cycle_now(state.labels, state.x))
+        decision = Decision(waiting, moving, finished)
+        if decision.deadlocked:
+            state.deadlock = True
+            state.events.append({"step": t, "kind": "deadlock", "robots": np.flatnonzero(waiting).tolist()})
+        return decision
+
+    def settle(self, state: ExecutionState) -> Decision:
+        """Eq. 1 at the end of the step budget, without flip tests (the state the run ends in)."""
+        return Decision(*state.rule.states(state.labels, state.x))
+
+    def move(self, state: ExecutionState, decision: Decision, t: int) -> np.ndarray:
+        """``x(t + 1) = x(t) + a(t) δ(t)``, arrivals and collisions; returns the disturbed mask ``(n,)``."""
+        state.x, hit = self._advance(state.x, decision.moving, t, state.stream)
+        newly = (state.arrival < 0) & (state.x >= self.traj.lengths)
+        state.arrival[newly] = t + 1
+        state.stats["collisions"] += self._collisions(state.x, t + 1, state.events)
+        return hit
+
+    def conclude(self, state: ExecutionState, n_steps: int) -> None:
+        """Record a ``timeout`` event when the budget of ``n_steps`` steps ended the run."""
+        if not np.all(state.x >= self.traj.lengths) and not state.deadlock:
+            state.events.append({"step": n_steps, "kind": "timeout"})
+
+    def execution(self, state: ExecutionState, progress: np.ndarray, waiting: np.ndarray) -> Execution:
+        """The run as an :class:`Execution` from its final state and its rows."""
+        stats = state.stats
+        return Execution(
+            progress=progress, waiting=waiting, events=state.events, labels=state.labels,
+            deadlock=state.deadlock, finished=bool(np.all(state.x >= self.traj.lengths)), collisions=stats["collisions"],
+            flips=stats["flips"], refused_flips=stats["refused"], flip_tests=stats["tests"],
+            decision_seconds=stats["seconds"], arrival_steps=state.arrival, cycle_log=state.cycle_log,
+        )
+
+    def _detector(self, labels: np.ndarray) -> IncrementalCycleDetector | None:
+        if not self.variant.deadlock_check or self.variant.method is Method.RMTRACK:
+            return None
+        if self.layout is None:
+            self.layout = build_segment_layout(self.space, self.resolution)
+        return self.detector(self.layout, labels)
+
+    def _flip_round(self, rule, labels, x, tried, detector, stats, events, t) -> None:
+        """Flip tests for every waiting robot's blocking obstacles (in robot order)."""
+        blocking = np.flatnonzero(rule.blocking_sides(labels, x))
+        if len(blocking) == 0:
+            return
+        test = self.flip_test or FLIP_TESTS[self.variant.method]
+        for side in blocking[np.argsort(self.space.side_waiter[blocking], kind="stable")].tolist():
+            if not flip_eligible(self.space, side, x, tried):
+                continue
+            obstacle, w, a = side // 2, int(self.space.side_waiter[side]), int(self.space.side_other[side])
+            if labels[obstacle] != a:
+                continue
+            tried[obstacle] = True
+            t0 = time.perf_counter()
+            stats["tests"] += 1
+            wanted = test(FlipContext(self.space, side, w, a, x, self.times, labels))
+            accepted = wanted and (detector is None or detector.try_flip(obstacle, w, x))
+            stats["seconds"] += time.perf_counter() - t0
+            if accepted:
+                labels[obstacle] = w
+                stats["flips"] += 1
+                events.append({"step": t, "kind": "flip", "robot": w, "other": a, "obstacle": obstacle})
+            elif wanted:
+                stats["refused"] += 1
+                events.append({"step": t, "kind": "flip_refused", "robot": w, "other": a, "obstacle": obstacle})
+
+    def _advance(self, x, moving, t, stream) -> tuple[np.ndarray, np.ndarray]:
+        """``x(t + 1) = x(t) + a(t) δ(t)``; also returns which robots were disturbed."""
+        if self.disturbed is not None:
+            hit = np.asarray(self.disturbed(t, x), dtype=bool)
+        else:
+            p = self.probability[np.arange(len(x)), x]
+            hit = stream.uniforms(t) < p
+        if self.observe_cells is not None:
+            self.times.observe(self.observe_cells[np.arange(len(x)), x], moving, hit)
+        return x + (moving & ~hit), hit
+
+    def _collisions(self, x, step, events) -> int:
+        pos = self.traj.at(x)
+        d2 = ((pos[:, None] - pos[None]) ** 2).sum(-1)
+        i, j = np.nonzero(np.triu(d2 < (2 * self.traj.radius) ** 2, k=1))
+        for a, b in zip(i.tolist(), j.tolist()):
+            events.append({"step": step, "kind": "collision", "robots": [a, b]})
+        return len(i)
+
+    def _cycle_now(self, labels, x) -> bool:
+        if self.layout is None:
+            self.layout = build_segment_layout(self.space, self.resolution)
+        return has_cycle_full(self.layout, labels, x)

@@ -1,0 +1,147 @@
+"""Scenario integration of the robot models: bad input, zero-noise runs, determinism."""
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import robofleet
+from robofleet.avoidance.cell import Cells, Kind
+from robofleet.avoidance.metrics import box_distance
+from robofleet.avoidance.simulation import ground_section
+from robofleet.core.errors import ScenarioError
+
+SCENARIOS = Path(__file__).resolve().parents[2] / "scenarios" / "avoidance"
+MODEL_SCENARIOS = ["diff_drive.yaml", "double_integrator.yaml", "heterogeneous.yaml", "quadrotors_3d.yaml"]
+
+
+def base(**extra):
+    spec = {"family": "avoidance", "max_steps": 200, "goal_tolerance": 0.2,
+            "robots": {"n": 4, "radius": 0.2, "v_max": 0.6, "sigma": 0.0, "layout": {"kind": "circle", "radius": 3.0}}}
+    spec.update(extra)
+    return spec
+
+
+@pytest.mark.parametrize("name", MODEL_SCENARIOS)
+def test_shipped_model_scenarios_validate(name):
+    spec = robofleet.load_scenario(SCENARIOS / name)
+    kinds = {(t.model.kind, t.model.controller) for t in spec.team_specs()}
+    assert kinds and kinds != {("single_integrator", "one_step")}
+
+
+@pytest.mark.parametrize("mapping,field", [
+    (base(model={"kind": "hovercraft"}), "model.kind"),
+    (base(model={"kind": "double_integrator"}), "model.a_max"),
+    (base(model={"kind": "unicycle", "controller": "one_step"}), "model.omega_max"),
+    (base(model={"kind": "single_integrator", "controller": "mpc", "mpc": {"horizon": 0}}), "model.mpc.horizon"),
+    (base(model={"kind": "single_integrator", "controller": "mpc", "mpc": {"horizon": -3}}), "model.mpc.horizon"),
+    (base(workspace={"obstacles": [{"center": [0, 0, 1], "size": [1, 1, 2]}]}), "workspace.obstacles.0.center"),
+    (base(method="orca", model={"kind": "unicycle", "omega_max": 1.0}), "method"),
+    (base(teams=[{"model": {"kind": "quadrotor", "controller": "mpc"}, "n": 2}]), "teams.0.model.kind"),
+    (base(space3d={"bounds": [-5, -5, 0, 5, 5, 3], "boxes": [{"center": [0, 0], "size": [1, 1, 1]}]},
+          teams=[{"model": {"kind": "quadrotor", "controller": "mpc"}, "n": 2}]), "space3d.boxes.0.center"),
+    (base(model={"kind": "quadrotor", "controller": "one_step"}), "model.controller"),
+])
+def test_bad_model_input_is_one_clear_line(mapping, field):
+    with pytest.raises(ScenarioError) as info:
+        robofleet.load_scenario(mapping)
+    message = str(info.value)
+    assert "\n" not in message
+    assert f": {field}: expected" in message, message
+
+
+def test_unknown_model_error_lists_the_valid_names():
+    with pytest.raises(ScenarioError) as info:
+        robofleet.load_scenario(base(model={"kind": "hovercraft"}))
+    assert "double_integrator" in str(info.value) and "quadrotor" in str(info.value)
+
+
+@pytest.mark.parametrize("model", [
+    {"kind": "double_integrator", "a_max": 1.0},
+    {"kind": "unicycle", "omega_max": 1.5707963},
+])
+def test_ground_models_swap_without_collisions_at_zero_noise(model):
+    spec = robofleet.load_scenario(base(model=model, max_steps=500, deadlock={"recover_steps": 30}))
+    summary = robofleet.simulate(spec, seed=0).summary()
+    assert summary["collisions"] == 0
+    assert summary["min_pair_distance"] >= 0.4 - 1e-7
+    assert summary["success"]
+
+
+def test_heterogeneous_team_runs_without_collisions_at_zero_noise():
+    mapping = base(
+        dt=0.05, max_steps=160, method="buavc",
+        space3d={"bounds": [-3, -3, 0, 3, 3, 2], "boxes": [{"center": [0, 0, 1], "size": [0.6, 0.6, 2], "yaw": 0.5}]},
+        teams=[
+            {"model": {"kind": "unicycle", "omega_max": 1.5707963}, "n": 2, "v_max": 0.6, "layout": {"kind": "circle", "radius": 2.0}},
+            {"model": {"kind": "double_integrator", "a_max": 1.0}, "n": 2, "v_max": 0.6, "layout": {"kind": "circle", "radius": 2.0, "phase": 1.5707963}},
+            {"model": {"kind": "quadrotor", "controller": "mpc", "mpc": {"horizon": 10}}, "n": 2, "v_max": 1.0,
+             "layout": {"kind": "circle", "radius": 2.0, "height": 0.45, "phase": 0.785}},
+        ],
+    )
+    trace = robofleet.simulate(robofleet.load_scenario(mapping), seed=0)
+    summary = trace.summary()
+    pos = trace.positions
+    assert pos.shape[2] == 3
+    ground = np.array([m != "quadrotor" for m in trace.metadata["models"]])
+    np.testing.assert_allclose(pos[:, ground, 2], 0.2)  # ground robots stay in their plane
+    assert summary["collisions"] == 0 and summary["obstacle_collisions"] == 0
+    assert summary["min_pair_distance"] >= 0.4 - 1e-7
+    # the quadrotors flew low enough to have to avoid the ground robots' spheres
+    assert pos[:, ~ground, 2].min() < 0.6
+    # everybody made progress toward the goal
+    goals = np.asarray(trace.metadata["goals"])
+    assert np.all(np.linalg.norm(pos[-1] - goals, axis=1) < np.linalg.norm(pos[0] - goals, axis=1) - 1.0)
+
+
+def test_orca_method_runs_and_is_deterministic():
+    spec = robofleet.load_scenario(base(method="orca", robots={"n": 6, "radius": 0.2, "v_max": 0.6, "sigma": 0.05,
+                                                                "layout": {"kind": "circle", "radius": 3.0}}))
+    a = robofleet.simulate(spec, seed=4)
+    b = robofleet.simulate(spec, seed=4)
+    np.testing.assert_array_equal(a.positions, b.positions)
+    assert np.linalg.norm(a.positions[-1] - a.positions[0], axis=1).min() > 1.0
+
+
+def test_robots_block_is_the_same_team_as_its_teams_spelling():
+    """The short ``robots:`` + ``model:`` form is one team: the same trace as ``teams:``."""
+    robots = {"n": 4, "radius": 0.2, "v_max": 0.4, "sigma": 0.1, "layout": {"kind": "circle", "radius": 3.0}}
+    short = robofleet.load_scenario(base(robots=robots))
+    team = {"name": "robots", "n": 4, "v_max": 0.4, "sigma": 0.1, "layout": {"kind": "circle", "radius": 3.0}}
+    long = robofleet.load_scenario(base(robots={"radius": 0.2}, teams=[team]))
+    assert short.team_specs() == long.team_specs()
+    a, b = robofleet.simulate(short, seed=1), robofleet.simulate(long, seed=1)
+    assert sorted(a.arrays) == sorted(b.arrays) and "headings" not in a.arrays  # no model with a heading
+    for key in a.arrays:
+        if key != "step_seconds":
+            np.testing.assert_array_equal(a.arrays[key], b.arrays[key])
+    assert a.events == b.events
+
+
+def test_box_distance_matches_brute_force():
+    rng = np.random.default_rng(0)
+    pts = rng.uniform(-3, 3, (50, 3))
+    centre, size, yaw = np.array([[0.5, -0.2, 1.0]]), np.array([[1.0, 2.0, 0.5]]), np.array([0.7])
+    z = rng.uniform(-0.5, 0.5, (200_000, 3)) * size[0]
+    c, s = np.cos(yaw[0]), np.sin(yaw[0])
+    box_pts = z @ np.array([[c, s, 0], [-s, c, 0], [0, 0, 1]]) + centre[0]
+    brute = np.min(np.linalg.norm(pts[:, None] - box_pts[None], axis=-1), axis=1)
+    d = box_distance(pts, centre, size, yaw)[:, 0]
+    assert np.all(d <= brute + 1e-9) and np.all(brute - d < 0.08)
+
+
+def test_orca_robots_arrive_without_noise():
+    spec = robofleet.load_scenario(base(method="orca", max_steps=400, orca={"time_horizon": 5.0}))
+    summary = robofleet.simulate(spec, seed=2).summary()
+    assert summary["arrived"] == 1.0 and summary["collisions"] == 0
+
+
+def test_ground_section_ignores_floor_and_ceiling_but_not_robots():
+    A = np.array([[[0, 0, -1.0], [0, 0, 1.0], [0.6, 0, 0.8], [0, 0, 1.0]]])
+    b = np.array([[-0.32, 2.0, 1.0, 0.1]])
+    kind = np.array([[Kind.WALL, Kind.WALL, Kind.ROBOT, Kind.ROBOT]], np.int8)
+    cells = ground_section(Cells(A, b, np.ones((1, 4), bool), kind, np.zeros((1, 4), np.intp)), 0.2)
+    assert list(cells.valid[0]) == [False, False, True, True]
+    np.testing.assert_allclose(cells.A[0, 2], [1.0, 0.0])
+    np.testing.assert_allclose(cells.b[0, 2], (1.0 - 0.8 * 0.2) / 0.6)
+    assert cells.b[0, 3] < 0  # a quadrotor plane below the ground robot: its section is empty

@@ -1,0 +1,55 @@
+"""The built wheel, installed into a fresh virtual environment, works from any directory:
+the shipped scenarios and sweeps are inside it and addressable by name."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from robofleet.scenarios import catalogue
+
+ROOT = Path(__file__).resolve().parents[1]
+pytestmark = pytest.mark.slow
+
+
+def run(*args, cwd, env=None, timeout=900):
+    result = subprocess.run([str(a) for a in args], cwd=cwd, capture_output=True, text=True, timeout=timeout, env=env)
+    assert result.returncode == 0, f"{args}: {result.stdout[-2000:]}\n{result.stderr[-2000:]}"
+    return result.stdout
+
+
+@pytest.fixture(scope="module")
+def wheel_venv(tmp_path_factory):
+    base = tmp_path_factory.mktemp("wheel")
+    run(sys.executable, "-m", "build", "--wheel", "--outdir", base / "dist", ROOT, cwd=base)
+    (wheel,) = (base / "dist").glob("robofleet-*.whl")
+    venv = base / "venv"
+    run(getattr(sys, "_base_executable", sys.executable), "-m", "venv", venv, cwd=base)
+    run(venv / "bin" / "python", "-m", "pip", "install", "--quiet", wheel, cwd=base)
+    return venv
+
+
+def test_wheel_ships_the_catalogue_and_runs_by_name_from_anywhere(wheel_venv, tmp_path):
+    env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH",)} | {"MPLBACKEND": "Agg"}
+    robofleet = wheel_venv / "bin" / "robofleet"
+    listing = run(robofleet, "scenarios", cwd=tmp_path, env=env)
+    assert "avoidance/circle_swap" in listing and "search/fig7" in listing and "coordination/fig2_three_robots" in listing
+    assert "buavc_noise" in run(robofleet, "scenarios", "--sweeps", cwd=tmp_path, env=env)
+    run(robofleet, "validate", "coordination/fig2_three_robots", cwd=tmp_path, env=env)
+    run(robofleet, "check", "search/fig7", cwd=tmp_path, env=env)
+    probe = (
+        "import robofleet, robofleet.scenarios as s, robofleet.experiments as e\n"
+        "assert 'site-packages' in str(s.path('avoidance/circle_swap'))\n"
+        f"assert s.names() == {catalogue.names()!r}\n"
+        "plan = e.plan_sweep('buavc_noise')\n"
+        "assert plan.tasks\n"
+        "t = robofleet.simulate(robofleet.load_scenario('avoidance/circle_swap', {'max_steps': 3}), seed=1)\n"
+        "assert t.summary()['family'] == 'avoidance'\n"
+        "print(robofleet.__file__)\n"
+    )
+    where = run(wheel_venv / "bin" / "python", "-c", probe, cwd=tmp_path, env=env)
+    assert str(ROOT) not in where
