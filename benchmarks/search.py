@@ -22,7 +22,8 @@ from robofleet.core.rng import spawn_seeds
 from robofleet.experiments.reproductions.search import FIG7_ALGORITHMS
 from robofleet.experiments.sweep import simulate_task
 from robofleet.scenarios import path as scenario_path
-from robofleet.search.simulation import LABELS, build_problem, run_search, run_search_batch
+from robofleet.search.simulation import build_problem, run_search, run_search_batch
+from robofleet.search.spec import LABELS
 
 FIG7 = "search/fig7"
 FIG7_ROBOTS = tuple(range(1, 14))

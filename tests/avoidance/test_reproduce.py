@@ -29,6 +29,7 @@ def reproduce_twice(declaration, out):
 
 
 def assert_resumed_without_rerun(declaration, first, stored, second, out):
+    """The second call rewrote no result file and gave the same rows and tables."""
     for sweep in declaration.sweeps:
         assert run_files(out / "runs" / sweep) == stored[sweep], f"{sweep} ran again"
         a, b = first.frames[sweep], second.frames[sweep]

@@ -28,10 +28,12 @@ STEPS = 4
 
 @pytest.fixture(scope="module")
 def traces() -> dict[str, Trace]:
+    """A short run of every shipped scenario kind."""
     return {name: robofleet.simulate(robofleet.load_scenario(name, {"max_steps": STEPS}), seed=3) for name in SCENARIOS}
 
 
 def gif_frames(path: Path) -> int:
+    """Frames in a GIF file."""
     with Image.open(path) as image:
         return image.n_frames
 

@@ -30,6 +30,6 @@ def test_smallest_budget_identical_on_serial_and_process(name, tmp_path):
         assert a[columns].equals(b[columns]), sweep
     for result, out in ((serial, tmp_path / "serial"), (process, tmp_path / "process")):
         assert (out / "summary.csv").is_file() and (out / "table.md").is_file()
-        assert all(p.is_file() and p.stat().st_size for p in result.files)
+        assert all(p.is_dir() and any(p.iterdir()) or p.is_file() and p.stat().st_size for p in result.files)
         assert {p.name for p in (out / "runs").iterdir()} == set(declaration.sweeps)
     assert serial.markdown.strip()

@@ -104,6 +104,12 @@ def test_own_map_bounds_select_no_preset_and_regions_carry_probabilities():
     assert preset.region("disturbance").attributes == {"probability": 0.85}
 
 
+@pytest.mark.parametrize("name", ["coordination/fig2_three_robots", "coordination/x_corridor_20"])
+def test_a_dumped_spec_validates_again(name):
+    dumped = load_scenario(name).model_dump(mode="json")
+    assert Spec.model_validate(dumped).model_dump(mode="json") == dumped
+
+
 @pytest.mark.parametrize("workspace, match", [
     ({"preset": "x_corridor", "bounds": [0, 0, 10, 10]}, "workspace.preset: expected null when bounds are given"),
     ({"preset": None}, "workspace.bounds: expected the map's bounds when preset is null"),

@@ -6,8 +6,14 @@ import numpy as np
 
 from robofleet.core.rng import spawn_seeds
 from robofleet.experiments import plan_sweep, reproduce, run_sweep
-from robofleet.experiments.reproductions.search import (REPRODUCTION, coverage_markdown, coverage_range_summary,
-                                                        coverage_summary, fig7_markdown, fig7_summary)
+from robofleet.experiments.reproductions.search import (
+    REPRODUCTION,
+    coverage_markdown,
+    coverage_range_summary,
+    coverage_summary,
+    fig7_markdown,
+    fig7_summary,
+)
 
 
 def test_fig7_sweep_covers_the_grid_and_pairs_seeds():
@@ -45,17 +51,22 @@ def test_tiny_coverage_study(tmp_path):
     mapping = REPRODUCTION.sweep_mapping("search_coverage", REPRODUCTION.budgets["smallest"])
     df = run_sweep(mapping, executor="serial", progress=False, out=tmp_path / "c")
     summary = coverage_summary(df)
-    assert set(summary["grid"]) == {"triangular", "square", "hexagonal"} and (summary["r_st"] == 1.31).all()
+    assert set(summary["grid"]) == {"triangular", "square", "hexagonal"} and (summary["n_robots"] == 3).all()
     tri = summary[summary["grid"] == "triangular"].iloc[0]
     assert tri["detected_share"] == 1.0 and tri["grid_limit_share"] == 1.0
     assert (summary["detected_share"] <= summary["grid_limit_share"] + 1e-12).all()
     assert "hexagonal" in coverage_markdown(summary)
+
+
+def test_tiny_coverage_ranges_judge_the_same_routes(tmp_path):
+    mapping = REPRODUCTION.sweep_mapping("search_coverage_ranges", REPRODUCTION.budgets["smallest"])
+    df = run_sweep(mapping, executor="serial", progress=False, out=tmp_path / "r")
     ranges = coverage_range_summary(df)
     assert list(ranges.columns) == ["grid", "n_robots", "detected_at_rst_0.60a", "detected_at_rst_1.31a"]
     assert (ranges["detected_at_rst_0.60a"] < ranges["detected_at_rst_1.31a"]).all()
-    # r_st does not change the routes in situation 2: the two ranges judge the same runs
+    # r_st does not change the routes in situation 2: both ranges judge the same runs
     for _, pair in df.groupby(["grid.kind", "seed"]):
-        assert pair["search_time"].nunique() == 1
+        assert len(pair) == 2 and pair["search_time"].nunique() == 1 and pair["visited_share"].nunique() == 1
 
 
 def test_reproduce_smallest_writes_every_file(tmp_path):

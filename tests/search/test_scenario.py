@@ -114,9 +114,9 @@ def test_workspace_block_is_the_shared_vocabulary():
     """``rectangle`` is ``bounds``; obstacles may be boxes or bare vertex lists; Assumption 2.1
     (obstacles inside the area, non-overlapping) is enforced."""
     box = {"center": [2.4, 2.5], "size": [1.2, 1.4]}
-    a = small_spec(**{"workspace": {"bounds": [0, 0, 8, 7], "corner_radius": 1.5, "obstacles": [box]}})
-    b = small_spec(**{"workspace": {"rectangle": [0, 0, 8, 7], "corner_radius": 1.5,
-                                    "obstacles": [[[1.8, 1.8], [3.0, 1.8], [3.0, 3.2], [1.8, 3.2]]]}})
+    a = small_spec(workspace={"bounds": [0, 0, 8, 7], "corner_radius": 1.5, "obstacles": [box]})
+    b = small_spec(workspace={"rectangle": [0, 0, 8, 7], "corner_radius": 1.5,
+                                    "obstacles": [[[1.8, 1.8], [3.0, 1.8], [3.0, 3.2], [1.8, 3.2]]]})
     np.testing.assert_allclose(a.built_grid().points, b.built_grid().points)
     assert (a.built_grid().accessible == b.built_grid().accessible).all()
     for obstacles, text in (([[[7.0, 6.0], [9.0, 6.0], [9.0, 8.0]]], "inside the area"),
@@ -133,7 +133,7 @@ def test_success_only_when_every_target_is_found_without_collision():
         assert r["success"] == (r["completed"] and r["found_targets"] == r["n_targets"] and r["collisions"] == 0
                                 and r["obstacle_collisions"] == 0)
     assert not all(t.results["success"] for t in traces)  # RU collides in a crowd
-    cut = simulate(small_spec(**{"max_steps": 2}), seed=1)
+    cut = simulate(small_spec(max_steps=2), seed=1)
     assert not cut.results["completed"] and not cut.results["success"]
 
 
@@ -147,7 +147,7 @@ def test_check_reports_the_papers_conditions():
     short = {g.reference: g for g in check(small_spec(**{"ranges.r_so": 1.0, "require_guarantee": False}))}
     assert not short["Assumption 2.4"].holds and not short["Table 1"].holds
     assert not short["Section 2, Assumptions 2.4-2.5"].holds and not short["Theorem 4.1, Section 3"].holds
-    ru = {g.reference: g for g in check(small_spec(**{"algorithm": "ru", "require_guarantee": False}))}
+    ru = {g.reference: g for g in check(small_spec(algorithm="ru", require_guarantee=False))}
     assert not ru["Section 4.2, steps 4-5"].holds and not ru["Section 2, Assumptions 2.4-2.5"].holds
     hexagonal = {g.reference: g for g in check(small_spec(**{"grid.kind": "hexagonal", "require_guarantee": False}))}
     assert not hexagonal["Section 3"].holds and not hexagonal["Theorem 4.1, Section 3"].holds

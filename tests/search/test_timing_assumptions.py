@@ -9,7 +9,7 @@ from hypothesis import strategies as st
 
 from robofleet.core.spec_blocks import rounded_rectangle
 from robofleet.core.workspace import Workspace
-from robofleet.search.guarantees import check_assumptions, max_boundary_turn, narrowest_passage
+from robofleet.search.assumptions import check_assumptions, max_boundary_turn, narrowest_passage
 from robofleet.search.timing import MotionTiming, trapezoid_time
 
 

@@ -46,8 +46,7 @@ class CoordinationSpace:
     side_lo, side_hi: ``(2m,)`` waiter's step range of the obstacle (``[L_i, R_i]`` or ``[B_j, T_j]``).
     side_other_lo, side_other_hi: ``(2m,)`` the other robot's step range.
     side_offset: ``(2m,)`` start of the side's profile in ``profile``.
-    profile: flat int array; ``profile[side_offset[s] + c - side_lo[s]]`` is the highest
-        step of the other robot inside the obstacle at waiter step ``c``.
+    profile: flat int array; ``profile[side_offset[s] + c - side_lo[s]]`` is the highest step of the other robot inside the obstacle at waiter step ``c``.
     n_cells: ``(m,)`` number of grid cells of each obstacle.
     """
 

@@ -8,7 +8,7 @@ from .metrics import RESULTS
 from .simulation import simulate
 from .spec import Spec
 
-PAPER = "anonymous authors 2021 (paper 000), on RMTRACK (Čáp, Gregoire & Frazzoli 2016) and label flipping (Coskun & O'Kane 2019)"
+PAPER = "a graph-based theory of deadlock for label flipping (anonymous, 2021), on RMTRACK (Čáp, Gregoire & Frazzoli 2016)"
 
 FAMILY = Family(
     name="coordination",

@@ -10,6 +10,11 @@ deadlock (Definition 1: at least one robot waiting and none moving) or after
 Disturbances come from one random stream per ``(seed, robot, step)`` (drawn in blocks of
 ``DISTURBANCE_BLOCK`` steps per robot, keyed by ``(seed, robot, block)``), so every method
 run with the same seed sees exactly the same disturbances: a paired comparison.
+
+:class:`PlanExecutor` exposes the loop's pieces (``start``, ``decide``, ``move``,
+``settle``, ``conclude``): :meth:`PlanExecutor.run` is their loop in memory, and
+:func:`robofleet.coordination.simulation.simulate` drives the same pieces through the core
+recorder.
 """
 
 from __future__ import annotations

@@ -30,7 +30,7 @@ Example::
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Literal, Optional
+from typing import Literal, Optional, Union
 
 import numpy as np
 from pydantic import Field, ValidationInfo, model_validator
@@ -38,7 +38,7 @@ from pydantic import Field, ValidationInfo, model_validator
 from ..core.config import SpecModel, as_array
 from ..core.errors import ScenarioError
 from ..core.rng import MAX_SEED
-from ..core.spec_blocks import RegionSpec, WorkspaceSpec
+from ..core.spec_blocks import Point, RegionSpec, WorkspaceSpec
 from ..core.workspace import Workspace
 from .maps import x_corridor_workspace
 from .plan_execution import Estimate, Method
@@ -56,31 +56,35 @@ class DisturbanceRegionSpec(RegionSpec):
 class CoordinationWorkspaceSpec(WorkspaceSpec):
     """The shared ``workspace:`` block plus ``preset: x_corridor`` (Fig. 1's map, the default).
 
-    With the preset, ``obstacles`` and ``regions`` are added to the preset map; giving
-    ``bounds`` without ``preset`` means a map of one's own.
+    With the preset, ``bounds`` stay null and ``obstacles`` and ``regions`` are added to
+    the preset map; giving ``bounds`` without ``preset`` means a map of one's own.
     """
 
     preset: Optional[Literal["x_corridor"]] = "x_corridor"
+    bounds: Optional[Union[tuple[float, float, float, float], list[Point]]] = None
     regions: list[DisturbanceRegionSpec] = Field(default_factory=list)
 
     @model_validator(mode="before")
     @classmethod
     def _bounds_mean_own_map(cls, data):
         """``bounds`` (or its alias ``rectangle``) without ``preset`` selects no preset."""
-        if isinstance(data, dict) and ("bounds" in data or "rectangle" in data) and "preset" not in data:
+        given = isinstance(data, dict) and (data.get("bounds") is not None or data.get("rectangle") is not None)
+        if given and "preset" not in data:
             data = {**data, "preset": None}
         return data
 
     @model_validator(mode="after")
-    def _preset_or_bounds(self):
-        given = self.model_fields_set
-        if self.preset is not None and "bounds" in given:
-            raise ScenarioError("preset", "null when bounds are given (a preset map has its own bounds)", self.preset)
-        if self.preset is None and "bounds" not in given:
+    def _geometry(self):
+        """The preset map alone, or bounds of one's own (checked as in every family)."""
+        if self.preset is not None:
+            if self.bounds is not None:
+                raise ScenarioError("preset", "null when bounds are given (a preset map has its own bounds)", self.preset)
+            if self.corner_radius:
+                raise ScenarioError("corner_radius", "0 with a preset map", self.corner_radius)
+            return self
+        if self.bounds is None:
             raise ScenarioError("bounds", "the map's bounds when preset is null", None)
-        if self.preset is not None and self.corner_radius:
-            raise ScenarioError("corner_radius", "0 with a preset map", self.corner_radius)
-        return self
+        return super()._geometry()
 
     def build(self, region_probability: float = 0.85) -> Workspace:
         """The workspace; the preset's own disturbance region has ``region_probability``."""

@@ -66,6 +66,8 @@ class Reproduction:
     markdown: ``markdown(tables) -> str``, the text of ``table.md``.
     figures: ``figures(tables, out) -> [paths]``, drawn into the directory ``out``.
     budgets: named budgets; ``smallest`` (a smoke run) and ``default`` are required.
+    seed_shares: sweep name → share of the budget's seeds that sweep runs (costly sweeps
+        run fewer; at least one seed each).
     """
 
     name: str
@@ -77,6 +79,7 @@ class Reproduction:
     markdown: Callable[[dict[str, pd.DataFrame]], str]
     figures: Callable[[dict[str, pd.DataFrame], Path], list[Path]]
     budgets: Mapping[str, Budget]
+    seed_shares: Mapping[str, float] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         for required in ("smallest", "default"):
@@ -88,7 +91,8 @@ class Reproduction:
         data, _ = read_mapping(catalogue.path(sweep, "sweeps"))
         data["grid"] = {**(data.get("grid") or {}), **{k: list(v) for k, v in budget.grid.items() if k in (data.get("grid") or {})}}
         data["overrides"] = {**(data.get("overrides") or {}), **budget.overrides}
-        data["seeds"] = int(seeds if seeds is not None else budget.seeds)
+        count = int(seeds if seeds is not None else budget.seeds)
+        data["seeds"] = max(1, int(round(count * self.seed_shares.get(sweep, 1.0))))
         data.pop("out", None)
         return data
 

@@ -263,12 +263,16 @@ def check_combination(scenario_ref: str | dict, combination: dict, source: str |
 
 
 def get_path(mapping: Mapping, dotted: str, default: Any) -> Any:
-    """``mapping["a"]["b"]`` for ``dotted == "a.b"``, or ``default`` if absent."""
+    """``mapping["a"]["b"]`` for ``dotted == "a.b"`` (numeric parts index lists), or
+    ``default`` if absent."""
     node: Any = mapping
     for key in dotted.split("."):
-        if not isinstance(node, Mapping) or key not in node:
+        if isinstance(node, list) and key.isdigit() and int(key) < len(node):
+            node = node[int(key)]
+        elif isinstance(node, Mapping) and key in node:
+            node = node[key]
+        else:
             return default
-        node = node[key]
     return node
 
 

@@ -78,14 +78,14 @@ def pattern_guarantees(spec: Spec, pattern: Pattern) -> list[Guarantee]:
     drawn = " (random pattern: lb-symmetric by construction; checked on the seed-0 draw)" if spec.pattern.kind == "random" else ""
     kind = spec.algorithm.kind
     limitation = pattern_limitation(kind, pattern)
+    on_axis = f"{pattern.n_on_axis} point{'' if pattern.n_on_axis == 1 else 's'} on the axis"
     return [
         Guarantee("lb-symmetric pattern", "Sec. 4.1, item 2", pattern.is_lb_symmetric,
-                  f"{pattern.name} is not symmetric about the line through L and B_P: followers without common chirality "
+                  f"ℙ ({pattern.name}) is not symmetric about the line through L and B_P: followers without common chirality "
                   "may disagree on the formation (Fig. 6); formed at best up to reflection",
                   f"the two semi-patterns are indistinguishable, so any chirality agrees{drawn}"),
         Guarantee("at most one pattern point on the L-B axis", "Sec. 4.1, item 3", pattern.n_on_axis <= 1,
-                  f"{pattern.n_on_axis} points on the axis: two followers may rank equal and pick the same slot (Fig. 7)",
-                  f"{pattern.n_on_axis} point(s) on the axis{drawn}"),
+                  f"{on_axis}: two followers may rank equal and pick the same slot (Fig. 7)", on_axis),
         Guarantee("pattern directed along B → L", "Sec. 4.1, item 1", pattern.is_directed,
                   "B_P is off the pattern's negative x axis: the estimated heading B → L differs from the leader's, "
                   "so Δ_e ≤ ξ does not give Δ_r ≤ ξ",

@@ -26,7 +26,7 @@ from scipy.optimize import linear_sum_assignment
 from scipy.spatial.distance import cdist
 
 from ..core.errors import ConfigError
-from .leader import ConditionReport
+from .leader import ConditionReport, LeaderCourse, check_conditions, condition4_max
 from .patterns import Pattern
 from .schedulers import CycleLog
 
@@ -252,6 +252,17 @@ def cycle_results(log: CycleLog, n_followers: int) -> dict:
     follower moving, from the cycle log."""
     return {"slot_changes": int(slot_changes(log.robot, log.slot, n_followers).sum()), "cycles": len(log),
             "seen_moving_share": float(np.mean(log.seen_moving > 0)) if len(log) else 0.0}
+
+
+def measured_conditions(log: CycleLog, course: LeaderCourse, radius: float, speeds: np.ndarray, xi: float,
+                        slot_speed: float) -> ConditionReport:
+    """Conditions (1)-(4) of Sec. 3.2 on a run: v_L and ω_L of the course as driven, each
+    follower's longest Move τ_f^M as logged (its cycle, the wait included), and condition
+    (4) swept over the logged Move intervals with the slot speed v_L + ω_L R_P."""
+    longest_move = np.zeros(len(speeds))
+    np.maximum.at(longest_move, log.robot, log.t_end - log.t_look)
+    return check_conditions(course.speed, course.max_turn_rate, radius, speeds, longest_move, xi,
+                            cond4=condition4_max(log.t_look, log.t_end, slot_speed), on_violation="ignore")
 
 
 def condition_results(report: ConditionReport) -> dict:

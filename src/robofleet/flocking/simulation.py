@@ -31,7 +31,7 @@ from ..core.recorder import Recorder
 from ..core.rng import keyed_generator, resolve_seed
 from ..core.trace import Trace
 from . import metrics
-from .leader import LeaderCourse, build_course, check_conditions, condition4_max, resolve_speeds
+from .leader import LeaderCourse, build_course, check_conditions, resolve_speeds
 from .model import LocalFrames
 from .patterns import Pattern
 from .schedulers import LookComputeMove, sample_times
@@ -160,11 +160,7 @@ def simulate(spec: Spec, seed: int | None = None, progress: bool = False) -> Tra
 def run_results(spec: Spec, world: World, rec: Recorder) -> dict:
     """``trace.results``: the spec's names, then :func:`.metrics.run_results` of the recorded run."""
     log = world.engine.log()
-    tau_measured = np.zeros(world.engine.size)
-    np.maximum.at(tau_measured, log.robot, log.t_end - log.t_look)
-    conditions = check_conditions(world.course.speed, world.course.max_turn_rate, world.pattern.radius, world.speeds,
-                                  tau_measured, world.xi, cond4=condition4_max(log.t_look, log.t_end, world.slot_speed),
-                                  on_violation="ignore")
+    conditions = metrics.measured_conditions(log, world.course, world.pattern.radius, world.speeds, world.xi, world.slot_speed)
     a = rec.arrays()
     return {"pattern": world.pattern.name, "algorithm": spec.algorithm.kind, "scheduler": spec.scheduler.kind,
             **metrics.run_results(a["time"], a["delta_e"], a["delta_r"], world.xi, log, world.engine.size, conditions,

@@ -1,172 +1,26 @@
-"""The paper's checkable conditions: its assumptions, and what the completeness guarantee
-then means (:func:`check`, what ``robofleet check`` prints for a search scenario).
+"""The paper's checkable conditions for one search scenario (paper 002), and what follows
+from them: :func:`check`, what ``robofleet check`` prints.
 
-Paper 002:
-
-* 2.4  ``r_so ≥ a + r_safe`` — a robot senses every obstacle blocking an edge it may take.
-* 2.5  ``r_c ≥ 2a + r_safe − r_rob`` — robots one or two vertices apart communicate, so
-  sequential choices with broadcast avoid every collision.
-* Section 2: ``r_safe > r_rob`` (the safety radius includes all errors).
-* 3.1.1 ``r_st ≥ a + r_safe`` — areas near inaccessible vertices are detected from their
-  accessible neighbours (Fig. 2, area D).
-* 3.1.2 the curvature of the concave parts of the area is at most ``1/r_st``. A polygon's
-  corners have unbounded curvature, so we read the assumption at the scale ``r_st``: along
-  the boundary of ``A_d`` (interior on the left), the boundary may turn towards the area by
-  at most 1 rad within any stretch of length ``r_st`` — what an arc of radius ``r_st`` does.
-  A rounded corner of radius ``≥ r_st`` passes, a right-angled corner of the border (a
-  turn of π/2 at one point) or a notch in an obstacle fails; convex obstacles never fail
-  (their corners turn away from the area). Sections A–C of Fig. 2 fail it.
-* 3.1.3 passages between obstacles, or between obstacles and the border, are at least
-  ``W_pass = a + 2 r_safe`` wide (Fig. 3).
-
-Theorem 4.1 (all assumptions, rules (1)/(2) with (3) or (4)): with probability 1 all
-targets are found (situation 1) or all vertices detected (situation 2); Section 3: only the
-triangular grid turns the latter into a complete search of ``A_d``.
-
-:func:`check` reports these for one scenario as :class:`~robofleet.core.family.Guarantee`
-s, together with the conditions the scenario model already enforces or decides: Assumption
-2.1 (obstacles inside the area, non-overlapping), Assumption 2.2 (robots start at
-different border vertices), the Table 1 design rule (ranges at the equalities of 2.4, 2.5
-and 3.1.1), the choice rule (only the sequential choices with broadcast, rules (1)/(2),
-are collision-free; RU and LFP are not) and working robots (Theorem 4.1 assumes no
-failures).
+The conditions on ranges and on the area (``r_safe > r_rob``, Assumptions 2.4, 2.5,
+3.1.1–3.1.3) are computed by :func:`.assumptions.check_assumptions`; this module adds the
+ones the scenario model enforces or decides — Assumption 2.1 (obstacles inside the area,
+non-overlapping), Assumption 2.2 (robots start at different border vertices), the Table 1
+design rule (ranges at the equalities of 2.4, 2.5 and 3.1.1), the triangular grid (Section
+3), the choice rule (only the sequential choices with broadcast, rules (1)/(2), are
+collision-free; RU and LFP are not) and working robots (Theorem 4.1 assumes no failures) —
+and the three consequences: collision-free moves (Section 2), every accessible vertex
+visited (Theorem 4.1) and a complete search of ``A_d`` (Theorem 4.1 with Section 3).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-from typing import TYPE_CHECKING
-
 import numpy as np
-import shapely
-from shapely.geometry import Polygon
 
 from ..core.family import Guarantee
-from ..core.workspace import Workspace
+from .assumptions import AssumptionCheck, AssumptionReport
 from .decentralized import SequentialPolicy
 from .grids import EPS, GridKind
-from .simulation import Algorithm
-
-if TYPE_CHECKING:
-    from .spec import Spec
-
-
-@dataclass(frozen=True)
-class AssumptionCheck:
-    """One assumption: ``holds`` when ``value`` satisfies ``required`` (both in area units)."""
-
-    name: str
-    statement: str
-    holds: bool
-    value: float
-    required: float
-
-    def __post_init__(self):
-        object.__setattr__(self, "holds", bool(self.holds))
-        object.__setattr__(self, "value", float(self.value))
-        object.__setattr__(self, "required", float(self.required))
-
-
-@dataclass(frozen=True)
-class AssumptionReport:
-    """All checks, and what Theorem 4.1 guarantees under them."""
-
-    checks: tuple[AssumptionCheck, ...]
-    grid_kind: GridKind
-    collision_free: bool
-    vertex_complete: bool
-    complete_search: bool
-    guarantee: str
-
-    def failed(self) -> list[AssumptionCheck]:
-        return [c for c in self.checks if not c.holds]
-
-    def as_dict(self) -> dict:
-        """Plain mapping for JSON output / trace metadata."""
-        return {
-            "checks": {c.name: {"holds": c.holds, "value": c.value, "required": c.required, "statement": c.statement} for c in self.checks},
-            "grid": self.grid_kind.value,
-            "collision_free": self.collision_free,
-            "vertex_complete": self.vertex_complete,
-            "complete_search": self.complete_search,
-            "guarantee": self.guarantee,
-        }
-
-
-def max_boundary_turn(workspace: Workspace, window: float) -> float:
-    """Largest turn (rad) towards ``A_d`` of its boundary within a stretch of length ``window``.
-
-    Rings are traversed with ``A_d`` on the left (outer border counter-clockwise, obstacles
-    clockwise); a left turn bends the boundary around the area (a pocket), a right turn away
-    from it. Returns the maximum over all stretches of the sum of signed turns. O(V²) per ring.
-    """
-    rings = [np.asarray(workspace.bounds, dtype=float)]
-    rings += [np.asarray(o, dtype=float)[::-1] for o in workspace.obstacles]  # stored ccw -> cw
-    worst = 0.0
-    for ring in rings:
-        if np.allclose(ring[0], ring[-1]):
-            ring = ring[:-1]
-        edge = np.roll(ring, -1, axis=0) - ring
-        heading = np.arctan2(edge[:, 1], edge[:, 0])
-        turn = (heading - np.roll(heading, 1) + np.pi) % (2 * np.pi) - np.pi  # turn at each vertex
-        length = np.linalg.norm(edge, axis=1)
-        start = np.concatenate([[0.0], np.cumsum(length)])  # arc length at each vertex
-        total = start[-1]
-        pos = np.concatenate([start[:-1], start[:-1] + total])
-        turns = np.concatenate([turn, turn])
-        for i in range(len(ring)):
-            inside = (pos >= pos[i] - EPS) & (pos <= pos[i] + window + EPS)
-            worst = max(worst, float(turns[inside].sum()))
-    return worst
-
-
-def narrowest_passage(workspace: Workspace) -> float:
-    """Smallest positive gap between two obstacles or between an obstacle and the border."""
-    parts = [Polygon(o) for o in workspace.obstacles]
-    border = workspace.boundary_polygon.exterior
-    gaps = [shapely.distance(p, border) for p in parts]
-    gaps += [shapely.distance(p, q) for i, p in enumerate(parts) for q in parts[i + 1:]]
-    positive = [g for g in gaps if g > EPS]
-    return float(min(positive)) if positive else float("inf")
-
-
-def check_assumptions(workspace: Workspace, kind: GridKind | str, a: float, r_rob: float, r_safe: float,
-                      r_so: float, r_st: float, r_c: float) -> AssumptionReport:
-    """Evaluate Assumptions 2.4, 2.5, 3.1.1–3.1.3 (and ``r_safe > r_rob``) for an instance."""
-    kind = GridKind(kind)
-    turn = max_boundary_turn(workspace, r_st)
-    passage = narrowest_passage(workspace)
-    checks = (
-        AssumptionCheck("safety", "r_safe > r_rob", bool(r_safe > r_rob), float(r_safe), float(r_rob)),
-        AssumptionCheck("2.4", "r_so >= a + r_safe", r_so >= a + r_safe - EPS, r_so, a + r_safe),
-        AssumptionCheck("2.5", "r_c >= 2a + r_safe - r_rob", r_c >= 2 * a + r_safe - r_rob - EPS, r_c, 2 * a + r_safe - r_rob),
-        AssumptionCheck("3.1.1", "r_st >= a + r_safe", r_st >= a + r_safe - EPS, r_st, a + r_safe),
-        AssumptionCheck("3.1.2", "boundary turn towards A_d within any length r_st <= 1 rad (curvature <= 1/r_st)",
-                        turn <= 1.0 + 1e-6, turn, 1.0),
-        AssumptionCheck("3.1.3", "passage width >= a + 2 r_safe", passage >= a + 2 * r_safe - EPS, passage, a + 2 * r_safe),
-    )
-    ok = {c.name: c.holds for c in checks}
-    collision_free = ok["safety"] and ok["2.4"] and ok["2.5"]
-    vertex_complete = collision_free and ok["3.1.3"]
-    complete = vertex_complete and ok["3.1.1"] and ok["3.1.2"] and kind is GridKind.TRIANGULAR
-    return AssumptionReport(checks, kind, collision_free, vertex_complete, complete, guarantee_text(collision_free, vertex_complete, complete, kind))
-
-
-def guarantee_text(collision_free: bool, vertex_complete: bool, complete: bool, kind: GridKind) -> str:
-    """What Theorem 4.1 and Section 3 promise for this instance, in one sentence."""
-    if complete:
-        return ("Theorem 4.1 applies: no collisions; with probability 1 all targets are found (situation 1) and every "
-                "accessible vertex is visited, so every point of A_d is within r_st of a visited vertex (situation 2).")
-    if not collision_free:
-        return ("No guarantee: with r_so < a + r_safe a blocked edge may go unsensed, with r_c < 2a + r_safe - r_rob "
-                "robots one or two vertices apart may not hear each other's choices, so collisions are possible.")
-    if not vertex_complete:
-        return ("Collision-free, but a passage narrower than a + 2 r_safe may cut the accessible vertices apart: only the "
-                "vertices connected to the starts are guaranteed to be visited.")
-    why = "the grid is not triangular (Section 3)" if kind is not GridKind.TRIANGULAR else "r_st or the area's pockets violate 3.1.1/3.1.2"
-    return ("Collision-free and every accessible vertex is visited with probability 1, but the search of A_d may be "
-            f"incomplete because {why}: points farther than r_st from every accessible vertex stay undetected.")
-
+from .spec import Algorithm, Spec
 
 TABLE1_RANGES = {"r_rob": 0.26, "r_safe": 0.31}
 """Table 1 (simulation row): the robot radius and safety radius taken from the Pioneer 3-DX;
@@ -195,7 +49,7 @@ def check(spec: Spec) -> list[Guarantee]:
     -------
     list of Guarantee
         Assumption 2.1, 2.2, ``r_safe > r_rob``, 2.4, 2.5, 3.1.1–3.1.3 (from
-        :func:`check_assumptions`), the Table 1 design rule, the triangular grid (Section
+        :func:`.assumptions.check_assumptions`), the Table 1 design rule, the triangular grid (Section
         3), the choice rule, working robots, and the three consequences: collision-free
         moves, every accessible vertex visited (Theorem 4.1) and a complete search of
         ``A_d`` (Theorem 4.1 with Section 3).

@@ -80,7 +80,7 @@ def run_results(record: RunRecord, grid: Grid, r_st: float) -> dict:
         "search_time": float(record.search_time),
         "completed": bool(record.completed),
         "found_targets": found_targets,
-        "n_targets": int(len(record.found)),
+        "n_targets": len(record.found),
         "visited_share": visited_share,
         "detected_share": probe.detected_share(record.visited),
         "grid_limit_share": probe.detected_share(record.reachable),

@@ -93,7 +93,7 @@ class StepContext:
 def pick_uniform(cand: np.ndarray, pool: np.ndarray, u: np.ndarray, stay: np.ndarray) -> np.ndarray:
     """For each row, the option of ``pool`` with index ``⌊u · |pool|⌋``; ``stay`` if empty.
 
-    This is a uniform choice "with prob. 1/|V|" of rules (1) and (2).
+    This is a uniform choice "with prob. ``1/|V|``" of rules (1) and (2).
     """
     count = pool.sum(axis=1)
     index = np.minimum((u * count).astype(np.intp), np.maximum(count - 1, 0))

@@ -2,20 +2,20 @@
 
 One iteration ``k`` (all robots simultaneously, Section 4):
 
-1. **Sense targets** within ``r_st``; a robot that finds one broadcasts its position (all
-   robots learn it).
-2. **Sense obstacles** within ``r_so``: the robot marks its vertex visited, its free
-   neighbours discovered; in situation 2 a neighbour it senses inaccessible is recorded as
-   visited. **Failure detection**: a robot that stops answering is detected by the robots
-   within ``r_c`` (missing reply) or ``r_so`` (sensed body); its vertex becomes blocked in
-   their maps (and visited in situation 2).
-3. **Exchange maps** with communication neighbours (robots within ``r_c``).
-7. **Stop check**: rule (3) in situation 1 (all targets known), rule (4) in situation 2 (no
-   unvisited vertex in the robot's map); 8. a stopping robot **broadcasts the stop** and the
-   search ends.
-4–5. **Choose** (the policy: sequential rules (1)/(2), RU or LFP).
-6. **Move**: rotate, then translate one edge with a trapezoidal profile; the step lasts as
-   long as the slowest robot plus the choice rounds (:mod:`.timing`).
+- 1\\. **Sense targets** within ``r_st``; a robot that finds one broadcasts its position (all
+  robots learn it).
+- 2\\. **Sense obstacles** within ``r_so``: the robot marks its vertex visited, its free
+  neighbours discovered; in situation 2 a neighbour it senses inaccessible is recorded as
+  visited. **Failure detection**: a robot that stops answering is detected by the robots
+  within ``r_c`` (missing reply) or ``r_so`` (sensed body); its vertex becomes blocked in
+  their maps (and visited in situation 2).
+- 3\\. **Exchange maps** with communication neighbours (robots within ``r_c``).
+- 7\\. **Stop check**: rule (3) in situation 1 (all targets known), rule (4) in situation 2 (no
+  unvisited vertex in the robot's map); 8. a stopping robot **broadcasts the stop** and the
+  search ends.
+- 4–5\\. **Choose** (the policy: sequential rules (1)/(2), RU or LFP).
+- 6\\. **Move**: rotate, then translate one edge with a trapezoidal profile; the step lasts as
+  long as the slowest robot plus the choice rounds (:mod:`.timing`).
 
 The loop also keeps observer-only records (true visits, collisions) that no robot reads.
 Several independent runs (same area, same number of robots, their own seeds and starts)
@@ -35,9 +35,7 @@ of :mod:`robofleet.core.rng`); :func:`run_search` and :func:`run_search_batch` r
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from enum import Enum
 from functools import lru_cache
-from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -53,27 +51,8 @@ from .metrics import RunRecord, run_results
 from .policy import RobotStreams, StepContext
 from .random_baseline import RandomUnvisitedPolicy
 from .sensing import SensingTables, build_sensing
+from .spec import LABELS, Algorithm, Spec, border_vertices
 from .timing import MotionTiming, heading_change
-
-if TYPE_CHECKING:
-    from .spec import Spec
-
-
-class Algorithm(str, Enum):
-    """The four algorithms of Fig. 7."""
-
-    PROPOSED = "proposed"  # rules (1), (2) & (3): this paper
-    RULE1 = "rule1"  # rules (1) & (3): the 2016 algorithm [8]
-    RU = "ru"  # random, unvisited first, collisions allowed [7]
-    LFP = "lfp"  # Lévy flight with potential field [12]
-
-
-LABELS = {
-    Algorithm.PROPOSED: "(1),(2)&(3)",
-    Algorithm.RULE1: "(1)&(3)",
-    Algorithm.RU: "RU",
-    Algorithm.LFP: "LFP",
-}
 
 
 @dataclass(frozen=True)
@@ -419,14 +398,6 @@ def cached_sensing(grid: Grid, targets: tuple, r_so: float, r_st: float) -> Sens
     return build_sensing(grid, np.asarray(targets, dtype=float).reshape(-1, 2), r_so, r_st)
 
 
-@lru_cache(maxsize=32)
-def border_vertices(grid: Grid) -> np.ndarray:
-    """:meth:`.grids.Grid.border_vertices` (Assumption 2.2's start vertices), once per grid."""
-    border = grid.border_vertices()
-    border.flags.writeable = False
-    return border
-
-
 def start_vertices(spec: Spec, grid: Grid, seed: int) -> np.ndarray:
     """Start vertex ids (Assumption 2.2): the given starts, or distinct random border vertices
     drawn from the stream ``(seed, "search-starts")``."""
@@ -457,7 +428,7 @@ def build_problem(spec: Spec, seed: int) -> SearchProblem:
     sensing = cached_sensing(grid, tuple(map(tuple, spec.targets)), r.r_so, r.r_st)
     return SearchProblem(grid, sensing, np.asarray(spec.targets, dtype=float).reshape(-1, 2), start_vertices(spec, grid, seed),
                          spec.situation, r.r_so, r.r_st, r.r_c, spec.timing, failure_steps(spec, seed), spec.max_steps,
-                         spec.levy.parameters())
+                         LevyParameters(spec.levy.beta, spec.levy.turn_sigma, spec.levy.repulsion, spec.levy.max_flight))
 
 
 def recorder_for(spec: Spec, problem: SearchProblem, progress: bool) -> Recorder:

@@ -22,6 +22,7 @@ robots: the simulation gives them only what they sense.
 from __future__ import annotations
 
 import math
+from enum import Enum
 from functools import lru_cache
 from typing import Literal
 
@@ -33,12 +34,29 @@ from ..core.config import SpecModel
 from ..core.errors import ConfigError, ScenarioError
 from ..core.spec_blocks import WorkspaceSpec
 from ..core.workspace import Workspace
+from .assumptions import AssumptionReport, check_assumptions
 from .grids import Grid, GridKind, build_grid
-from .guarantees import AssumptionReport, check_assumptions
-from .simulation import Algorithm, LevyParameters, border_vertices
 from .timing import MotionTiming
 
 Point = tuple[float, float]
+
+
+class Algorithm(str, Enum):
+    """The four algorithms of Fig. 7."""
+
+    PROPOSED = "proposed"  # rules (1), (2) & (3): this paper
+    RULE1 = "rule1"  # rules (1) & (3): the 2016 algorithm [8]
+    RU = "ru"  # random, unvisited first, collisions allowed [7]
+    LFP = "lfp"  # Lévy flight with potential field [12]
+
+
+LABELS = {
+    Algorithm.PROPOSED: "(1),(2)&(3)",
+    Algorithm.RULE1: "(1)&(3)",
+    Algorithm.RU: "RU",
+    Algorithm.LFP: "LFP",
+}
+"""The algorithms' names in Fig. 7's legend."""
 
 REQUIRED_FIELD = {"safety": "ranges.r_safe", "2.4": "ranges.r_so", "2.5": "ranges.r_c", "3.1.1": "ranges.r_st",
                   "3.1.2": "workspace", "3.1.3": "workspace.obstacles"}
@@ -135,10 +153,6 @@ class LevySpec(SpecModel):
     repulsion: float = Field(1.0, ge=0)
     max_flight: int = Field(20, ge=1)
 
-    def parameters(self) -> LevyParameters:
-        """The simulation's :class:`~.simulation.LevyParameters`."""
-        return LevyParameters(self.beta, self.turn_sigma, self.repulsion, self.max_flight)
-
 
 class Spec(SpecModel):
     """A search scenario (paper 002)."""
@@ -180,7 +194,7 @@ class Spec(SpecModel):
         return cached_grid(self.workspace.model_dump_json(), self.grid.kind.value, self.grid.a, self.ranges.r_safe)
 
     def assumption_report(self) -> AssumptionReport:
-        """Assumptions 2.4, 2.5, 3.1.1–3.1.3 evaluated for this scenario (:func:`.guarantees.check_assumptions`)."""
+        """Assumptions 2.4, 2.5, 3.1.1–3.1.3 evaluated for this scenario (:func:`.assumptions.check_assumptions`)."""
         r = self.ranges
         return cached_report(self.workspace.model_dump_json(), self.grid.kind.value, self.grid.a, self.ranges.r_safe,
                              r.r_rob, r.r_so, r.r_st, r.r_c)
@@ -235,6 +249,14 @@ def cached_grid(workspace_json: str, kind: str, a: float, r_safe: float) -> Grid
 @lru_cache(maxsize=64)
 def cached_report(workspace_json: str, kind: str, a: float, r_safe: float, r_rob: float, r_so: float, r_st: float,
                   r_c: float) -> AssumptionReport:
-    """:func:`.guarantees.check_assumptions` on the grid's workspace, once per process per instance."""
+    """:func:`.assumptions.check_assumptions` on the grid's workspace, once per process per instance."""
     workspace = cached_grid(workspace_json, kind, a, r_safe).workspace
     return check_assumptions(workspace, kind, a, r_rob, r_safe, r_so, r_st, r_c)
+
+
+@lru_cache(maxsize=32)
+def border_vertices(grid: Grid) -> np.ndarray:
+    """:meth:`.grids.Grid.border_vertices` (Assumption 2.2's start vertices), once per grid."""
+    border = grid.border_vertices()
+    border.flags.writeable = False
+    return border

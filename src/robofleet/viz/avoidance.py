@@ -239,8 +239,8 @@ def plot_buavc_comparison(noise, delta, path: str | Path) -> Path:
     d = delta["delta"].to_numpy(float)
     pooled = delta["pair_step_pooled"].to_numpy(float)
     seen = pooled > 0
-    axes[3].loglog(d[seen], pooled[seen], "o", label="B-UAVC, observed per pair and step")
-    axes[3].loglog(d, delta["pair_step_upper"].to_numpy(float), "v-", label="95 % upper bound of the observed rate")
+    axes[3].loglog(d[seen], pooled[seen], "o", color="C0", label="B-UAVC, observed per pair and step")
+    axes[3].loglog(d, delta["pair_step_upper"].to_numpy(float), "v-", color="C0", label="95 % upper bound of the observed rate")
     axes[3].loglog(d, d, "k--", label="bound δ")
     axes[3].set(xlabel="δ", ylabel="empirical collision probability", title="chance constraint")
     axes[3].legend(fontsize=7)

@@ -10,7 +10,7 @@ scenario carry σ, which a dotted grid path cannot address):
 * double integrator (``avoidance/double_integrator``, braking rule of Sec. 5.2);
 * differential drive (``avoidance/diff_drive``, three projections of Sec. 5.3);
 * quadrotor (``avoidance/quadrotors_3d``, MPC of Sec. 5.4 in 3D; a fifth of the seeds,
-  each run costs about a minute);
+  a run costs 10–40 s against under 2 s in 2D);
 * heterogeneous ground + air team (``avoidance/heterogeneous``; two fifths of the seeds).
 
 Two threshold sweeps (B-UAVC, δ ∈ {0.01, 0.05, 0.1, 0.2}) on the double integrator and
@@ -23,9 +23,8 @@ livelock).
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Mapping
 
 import pandas as pd
 
@@ -54,7 +53,7 @@ SEED_SHARES = {
     "buavc_models_quadrotor_sigma010": 0.2,
     "buavc_models_heterogeneous": 0.4,
 }
-"""Share of the budget's seeds run by the costly 3D sweeps (MPC, ~1 min a run)."""
+"""Share of the budget's seeds run by the costly 3D sweeps (MPC: 10–40 s a run, under 2 s in 2D)."""
 
 RESULT_KEYS = ["success", "n_robots", "run_collided", "pair_step_rate", "obstacle_step_rate",
                "mean_travel_time", "deadlock_detections", "arrived"]
@@ -71,24 +70,6 @@ TABLE_FORMATS = {
 }
 TABLE_COLUMNS = ["runs", "success", "run_collided", "pair_step_rate", "obstacle_step_rate", "mean_travel_time",
                  "deadlock_detections", "unfinished"]
-
-
-@dataclass(frozen=True)
-class SharedSeedsReproduction(Reproduction):
-    """A :class:`Reproduction` whose costly sweeps run a share of the budget's seeds.
-
-    Attributes
-    ----------
-    seed_shares: sweep name → share of the seeds (at least one seed is run).
-    """
-
-    seed_shares: Mapping[str, float] = field(default_factory=dict)
-
-    def sweep_mapping(self, sweep: str, budget: Budget, seeds: int | None = None) -> dict[str, Any]:
-        """The sweep with ``budget`` applied, its seed count scaled by its share."""
-        mapping = super().sweep_mapping(sweep, budget, seeds)
-        mapping["seeds"] = max(1, int(round(mapping["seeds"] * self.seed_shares.get(sweep, 1.0))))
-        return mapping
 
 
 def model_rows(frame: pd.DataFrame, sweep: str, model: str) -> pd.DataFrame:
@@ -134,7 +115,7 @@ def figures(tables: dict[str, pd.DataFrame], out: Path) -> list[Path]:
             viz.plot_models_delta(tables["delta"], out / "models_delta.png")]
 
 
-REPRODUCTION = SharedSeedsReproduction(
+REPRODUCTION = Reproduction(
     name="buavc-models",
     family="avoidance",
     paper="Zhu, Brito & Alonso-Mora 2022, Secs. 5-6 (B-UAVC for double integrators, differential drive, "

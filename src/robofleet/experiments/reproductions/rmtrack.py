@@ -1,4 +1,4 @@
-"""``robofleet reproduce rmtrack``: Fig. 6 of paper 000 on the X-plus-corridor map.
+"""``robofleet reproduce rmtrack``: Fig. 6 of the label-flipping deadlock paper on the X-plus-corridor map.
 
 One shipped sweep, ``rmtrack_fig6``: robot count ∈ {5, 10, 15, 20} × method ∈ {RMTRACK,
 RMTRACK+TFF, RMTRACK+TFA} × deadlock check ∈ {off, on} × seeds. The scenario's
@@ -121,7 +121,7 @@ def figures(tables: dict[str, pd.DataFrame], out: Path) -> list[Path]:
 REPRODUCTION = Reproduction(
     name="rmtrack",
     family="coordination",
-    paper="anonymous authors 2021 (paper 000), Fig. 6: RMTRACK vs label flipping (TFF, TFA) with and without the deadlock check",
+    paper="deadlock theory for label flipping (anonymous, 2021), Fig. 6: RMTRACK vs label flipping (TFF, TFA) with and without the deadlock check",
     description="X-plus-corridor map, 5-20 robots: travel time, flip-decision time, flips and finished share per variant",
     sweeps=(SWEEP,),
     tables=tables,

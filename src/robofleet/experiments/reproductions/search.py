@@ -8,11 +8,12 @@
 * **Coverage study** (``sweeps/search_coverage.yaml``, situation 2): the proposed
   algorithm on the triangular, square and hexagonal grids fitted to the same area; the
   share of ``A_d`` within ``r_st`` of a visited vertex, which backs the paper's choice of
-  the triangular grid. In situation 2 ``r_st`` does not change the routes, so the same
-  routes are also judged at shorter target ranges (violating Assumption 3.1.1).
+  the triangular grid. In situation 2 ``r_st`` does not change the routes, so
+  ``sweeps/search_coverage_ranges.yaml`` judges the same routes (5 robots) at shorter
+  target ranges too (violating Assumption 3.1.1).
 
 Budgets: ``smallest`` (a smoke run: 3 robots, two target ranges, 2 seeds), ``default`` (50
-seeds per point: 2,600 Fig. 7 runs and today's 50 coverage runs per grid and robot count),
+seeds per point: 2,600 Fig. 7 runs and 50 coverage runs per grid and robot count),
 ``full`` (500 seeds per point: the paper's 26,000 Fig. 7 runs; the coverage study at 500 too).
 """
 
@@ -25,12 +26,13 @@ import pandas as pd
 
 from ...core.trace import Trace
 from ...scenarios import family, load_scenario, simulate
-from ...search.simulation import LABELS, Algorithm
+from ...search.spec import LABELS, Algorithm
 from ..reproduction import Budget, Frames, Reproduction
 from ..store import ERROR_COLUMN
 
 FIG7_SWEEP = "search_fig7"
 COVERAGE_SWEEP = "search_coverage"
+RANGES_SWEEP = "search_coverage_ranges"
 FIG7_ALGORITHMS = (Algorithm.LFP, Algorithm.RU, Algorithm.RULE1, Algorithm.PROPOSED)
 ROUTES_SCENARIO, ROUTES_ROBOTS, ROUTES_SEED = "search/fig7", 3, 5
 """The run drawn as Figs. 5 and 6 (routes of every robot, and of robot 0)."""
@@ -64,20 +66,13 @@ def fig7_summary(df: pd.DataFrame) -> pd.DataFrame:
     return pd.DataFrame(rows).sort_values(["algorithm", "n_robots"]).reset_index(drop=True)
 
 
-def scenario_range_rows(df: pd.DataFrame) -> pd.DataFrame:
-    """The coverage rows at the scenario's own target range (the largest ``ranges.r_st`` swept)."""
-    ok = finished(df)
-    return ok[ok["ranges.r_st"] == ok["ranges.r_st"].max()]
-
-
 def coverage_summary(df: pd.DataFrame) -> pd.DataFrame:
     """Mean detected share of ``A_d`` (± 95 % CI), worst run, grid limit, visited share and
-    search time per grid kind and number of robots, at the scenario's target range."""
+    search time per grid kind and number of robots."""
     rows = []
-    for (kind, n), g in scenario_range_rows(df).groupby(["grid.kind", "n_robots"], sort=False):
+    for (kind, n), g in finished(df).groupby(["grid.kind", "n_robots"], sort=False):
         share, half, count = mean_ci(g["detected_share"])
-        rows.append({"grid": kind, "n_robots": int(n), "r_st": float(g["ranges.r_st"].iloc[0]), "detected_share": share,
-                     "ci95": half, "min_detected_share": float(g["detected_share"].min()),
+        rows.append({"grid": kind, "n_robots": int(n), "detected_share": share, "ci95": half, "min_detected_share": float(g["detected_share"].min()),
                      "grid_limit_share": float(g["grid_limit_share"].mean()), "visited_share": float(g["visited_share"].mean()),
                      "mean_time": float(g["search_time"].mean()), "accessible_vertices": int(g["accessible_vertices"].iloc[0]),
                      "runs": count})
@@ -100,15 +95,14 @@ def coverage_range_summary(df: pd.DataFrame) -> pd.DataFrame:
 
 
 def tables(frames: Frames) -> dict[str, pd.DataFrame]:
-    """``fig7``, ``coverage`` and ``coverage_ranges`` from the two sweeps' rows."""
-    cov = frames[COVERAGE_SWEEP]
-    return {"fig7": fig7_summary(frames[FIG7_SWEEP]), "coverage": coverage_summary(cov),
-            "coverage_ranges": coverage_range_summary(cov), "runs": run_counts(frames)}
+    """``fig7``, ``coverage``, ``coverage_ranges`` and ``runs`` (per-sweep counts) from the sweeps' rows."""
+    return {"fig7": fig7_summary(frames[FIG7_SWEEP]), "coverage": coverage_summary(frames[COVERAGE_SWEEP]),
+            "coverage_ranges": coverage_range_summary(frames[RANGES_SWEEP]), "runs": run_counts(frames)}
 
 
 def run_counts(frames: Frames) -> pd.DataFrame:
     """Per sweep: runs, failed runs and the summed run time (``wall_seconds``, one core)."""
-    rows = [{"sweep": name, "runs": int(len(f)), "failed": int(len(f) - len(finished(f))),
+    rows = [{"sweep": name, "runs": len(f), "failed": int(len(f) - len(finished(f))),
              "run_seconds": float(finished(f)["wall_seconds"].sum())} for name, f in frames.items()]
     return pd.DataFrame(rows)
 
@@ -156,7 +150,8 @@ def markdown(t: dict[str, pd.DataFrame]) -> str:
     """The text of ``table.md``: Fig. 7, the coverage study and its target-range table."""
     return ("### Fig. 7: mean search time (s, ± 95 % CI), nine targets\n\n" + fig7_markdown(t["fig7"])
             + "\n### Coverage study (situation 2, proposed algorithm)\n\n" + coverage_markdown(t["coverage"])
-            + "\nThe same routes judged with other target-sensing ranges (a = 1):\n\n" + coverage_range_markdown(t["coverage_ranges"])
+            + "\nThe same routes (5 robots) judged with other target-sensing ranges (a = 1):\n\n"
+            + coverage_range_markdown(t["coverage_ranges"])
             + "\n" + runs_markdown(t["runs"]))
 
 
@@ -180,8 +175,8 @@ REPRODUCTION = Reproduction(
     name="search",
     family="search",
     paper="Yang 2017 (CCC), Fig. 7 and the grid coverage study of Section 3",
-    description="search time of LFP, RU, (1)&(3), (1),(2)&(3) for 1-13 robots; detected share on T/S/H grids",
-    sweeps=(FIG7_SWEEP, COVERAGE_SWEEP),
+    description="search time of LFP, RU, (1)&(3), (1),(2)&(3) for 1-13 robots; detected share of A_d on T/S/H grids",
+    sweeps=(FIG7_SWEEP, COVERAGE_SWEEP, RANGES_SWEEP),
     tables=tables,
     markdown=markdown,
     figures=figures,
