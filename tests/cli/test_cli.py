@@ -105,7 +105,7 @@ def test_animate_without_a_viz_module_fails_cleanly_and_keeps_the_run(tmp_path, 
 def test_check_prints_each_guarantee(toy_family, toy_file, capsys):
     main(["check", str(toy_file)])
     lines = capsys.readouterr().out.strip().splitlines()
-    assert lines[0].endswith("toy random walk (nobody 2026)")
+    assert lines[0].endswith("toy random walk — nobody 2026")
     assert lines[1] == "noise-free convergence (toy model): no — sigma = 0.1"
 
 

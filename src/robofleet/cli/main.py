@@ -89,7 +89,7 @@ def check_command(scenario: ScenarioArgument) -> None:
     """Report which of its paper's checkable conditions a scenario meets, and what follows."""
     spec = load_scenario(scenario)
     family = family_of(spec)
-    typer.echo(f"{spec.source or scenario}: {family.title} ({family.paper})")
+    typer.echo(f"{spec.source or scenario}: {family.title} — {family.paper}")
     for guarantee in family.check(spec):
         typer.echo(guarantee.line())
 

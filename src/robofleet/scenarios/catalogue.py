@@ -67,12 +67,15 @@ def names(kind: str = "scenarios") -> builtins.list[str]:
 def path(name: str, kind: str = "scenarios") -> Path:
     """The file of the shipped scenario (or sweep) ``name``.
 
+    ``name`` may carry the folder and suffix of a checkout path
+    (``scenarios/avoidance/circle_swap.yaml``), so such paths work from any directory.
+
     Raises
     ------
     ScenarioError
         If there is no such shipped file; the message lists a few close names.
     """
-    key = str(name).removesuffix(SUFFIX).strip("/")
+    key = str(name).removesuffix(SUFFIX).strip("/").removeprefix(f"{kind}/")
     key = ALIASES.get(key, key)
     candidate = folder(kind) / f"{key}{SUFFIX}"
     if key and candidate.is_file():
