@@ -1,4 +1,4 @@
-"""Speed figures of the coordination family (paper 000). Prints figures; asserts nothing.
+"""Speed figures of the coordination family (the label-flipping deadlock paper (2021)). Prints figures; asserts nothing.
 
 1. Coordination-space construction (swept-bounding-box pruning) for 20/50/100 robots with
    long trajectories, against the naive dense grid of every pair (sampled pairs, scaled).

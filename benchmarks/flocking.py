@@ -1,4 +1,4 @@
-"""Flocking benchmarks (paper 001): prints throughput figures, asserts nothing.
+"""Flocking benchmarks (Gervasi & Prencipe 2001): prints throughput figures, asserts nothing.
 
 * ASYNC events (Look-Compute-Move cycles) per second with 100 and 1,000 followers, for
   each algorithm of Sec. 4-6.4 (the engine plus the Compute step; Δ metrics excluded).

@@ -1,4 +1,4 @@
-"""Solve time of the B-UAVC MPC per robot-step (paper 003 receding-horizon control).
+"""Solve time of the B-UAVC MPC per robot-step (Zhu et al. 2022 receding-horizon control).
 
 Runs a circle swap with real B-UAVC cells recomputed every step from noisy estimates
 and times every per-robot solve:

@@ -1,4 +1,4 @@
-"""Throughput of the grid search (paper 002) on the Fig. 7 area, per algorithm.
+"""Throughput of the grid search (Yang 2017) on the Fig. 7 area, per algorithm.
 
 Prints runs per second on one core (no store) for 1, 5 and 13 robots and each algorithm:
 ``run_search`` alone (no arrays recorded), ``simulate`` (the recorded run of the family

@@ -6,13 +6,13 @@ import math
 
 import pandas as pd
 import pytest
-import yaml
 
 from robofleet.core.errors import ConfigError
 from robofleet.experiments import deterministic_columns, plan_sweep
 from robofleet.experiments.reproduction import reproduce
 from robofleet.experiments.reproductions import buavc, buavc_models
-from robofleet.scenarios import catalogue
+from robofleet.experiments.sweep import expand_overrides
+from robofleet.scenarios import catalogue, load_scenario
 
 
 def run_files(directory) -> dict[str, float]:
@@ -97,22 +97,21 @@ def test_every_sweep_is_a_shipped_name_that_plans_alone():
 def test_costly_3d_sweeps_run_their_share_of_the_seeds():
     declaration = buavc_models.REPRODUCTION
     default = {s: declaration.sweep_mapping(s, declaration.budgets["default"])["seeds"] for s in declaration.sweeps}
-    assert default["buavc_models_quadrotor_sigma005"] == 2 and default["buavc_models_heterogeneous"] == 4
+    assert default["buavc_models_quadrotor"] == 2 and default["buavc_models_heterogeneous"] == 4
     assert default["buavc_models_single_integrator"] == 10
     assert declaration.sweep_mapping("buavc_models_heterogeneous", declaration.budgets["smallest"])["seeds"] == 1
     assert declaration.sweep_mapping("buavc_models_heterogeneous", declaration.budgets["default"], seeds=20)["seeds"] == 8
 
 
-@pytest.mark.parametrize("sweep", ["buavc_models_quadrotor_sigma005", "buavc_models_quadrotor_sigma010", "buavc_models_heterogeneous"])
-def test_3d_sweeps_set_sigma_on_the_scenarios_own_teams(sweep):
-    """The 3D sweeps restate the scenario's ``teams`` to set σ (a list entry); apart from
-    σ they must stay the scenario's teams, and σ must equal the obstacles' Σ_o."""
-    data = yaml.safe_load(catalogue.path(sweep, "sweeps").read_text())
-    scenario = yaml.safe_load(catalogue.path(data["scenario"]).read_text())
-    (sigma,) = data["grid"]["space3d.obstacle_sigma"]
-    teams = data["overrides"]["teams"]
-    assert {team["sigma"] for team in teams} == {sigma}
-    assert [{**t, "sigma": None} for t in teams] == [{**t, "sigma": None} for t in scenario["teams"]]
+@pytest.mark.parametrize("sweep", ["buavc_models_quadrotor", "buavc_models_heterogeneous"])
+def test_3d_sweeps_tie_every_teams_sigma_to_the_boxes(sweep):
+    """The 3D sweeps set each team's σ (a list entry) and Σ_o together through one grid key."""
+    plan = plan_sweep(sweep)
+    key = buavc_models.SIGMA_KEYS[1]
+    for combination in plan.combinations:
+        spec = load_scenario(plan.scenario, expand_overrides(combination))
+        sigma = combination[key]
+        assert [team.sigma for team in spec.teams] == [sigma, sigma] and spec.space3d.obstacle_sigma == sigma
 
 
 def test_clopper_pearson_bound_of_zero_events_has_the_closed_form():

@@ -10,7 +10,7 @@ For a robot at ``p̂`` with heading ``θ`` and goal ``g``:
 
 The projections onto a cell ∩ line are 1-D: ``{s : s (A·dir) ≤ b − A·p̂}`` is an
 interval and the nearest line point to ``g`` is ``s* = dir·(g − p̂)`` clipped into it.
-With ``m = (e_ω + e)/2``:
+With ``m = (e_ω + e)/2``::
 
     v_tmp = h·(p̂ − e_v),   ω_tmp = −atan(ℓ/f)  with (f, ℓ) = R(−θ)(m − p̂),
     k = 0.99 · min(v_max/|v_tmp|, ω_max/|ω_tmp|, 1/Δt),   v = −k v_tmp,   ω = −k ω_tmp / 2.

@@ -1,7 +1,7 @@
 """B-UAVC receding-horizon control (MPC) for any robot model (paper 003, Sec. 5.4 and
 appendix C; ``notes/buavc.md`` "Controllers").
 
-Each control step robot ``i`` solves
+Each control step robot ``i`` solves ::
 
     min_{x, u}  ‖g − p_N‖² / max(‖g − p_0‖², 1)  +  w_u/N · Σ_k ‖u_k‖²
     s.t.        x_0 = x̂,   x_{k+1} = f(x_k, u_k)            (the model's discrete step)

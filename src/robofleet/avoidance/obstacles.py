@@ -74,10 +74,14 @@ def obstacle_planes(points: np.ndarray, obstacles: ObstacleSet, index: np.ndarra
 
     Parameters
     ----------
-    points: ``(R, 2)`` robot position estimates, one row per (robot, obstacle) pair.
-    index: ``(R,)`` obstacle index of each row.
+    points
+        ``(R, 2)`` robot position estimates, one row per (robot, obstacle) pair.
+    index
+        ``(R,)`` obstacle index of each row.
 
-    Returns ``a (R, 2)`` and ``b (R,)`` before the robot's own chance buffer.
+    Returns
+    -------
+    ``a (R, 2)`` and ``b (R,)`` before the robot's own chance buffer.
     """
     w = obstacles.whitening[index]
     q = np.einsum("rij,rj->ri", w, points)

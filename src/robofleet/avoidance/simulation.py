@@ -5,7 +5,7 @@ plus a draw from ``N(0, Σ)`` (velocities, headings and attitudes are measured e
 and each obstacle's estimated position is its true position plus a draw from
 ``N(0, Σ_o)``; every robot builds its cell from those estimates, its team's controller
 picks the input, and the TRUE states move with the team's dynamics. Collisions are
-judged on true positions (:mod:`.metrics`).
+judged on true positions (:mod:`~robofleet.avoidance.metrics`).
 
 Methods share this code path and differ only in what the cells use (:class:`MethodSetup`):
 
@@ -378,7 +378,7 @@ class World:
 
     Parameters
     ----------
-    spec:
+    spec : ~robofleet.avoidance.spec.Spec
         The scenario.
     rng:
         The run's generator; random layouts are drawn from it here, the noise later.
@@ -603,7 +603,7 @@ def simulate(spec: Spec, seed: int | None = None, progress: bool = False) -> Tra
         (T+1, N)`` when a team has headings (NaN for the others), ``step_seconds (T,)``
         (cells + controllers of the whole fleet), ``arrival_steps (N,)``; 2-D runs with
         cells record ``cell_A``/``cell_b`` (default for N ≤ 64). Events ``arrived``,
-        ``deadlock``, ``empty_cell``. Results: :data:`~.metrics.RESULTS`. Metadata
+        ``deadlock``, ``empty_cell``. Results: :data:`~robofleet.avoidance.metrics.RESULTS`. Metadata
         ``loop_seconds``: the step loop's wall time alone (without the set-up and the
         per-run results).
     """

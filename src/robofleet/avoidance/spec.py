@@ -135,7 +135,7 @@ class Box3DSpec(SpecModel):
 
 class Space3DSpec(SpecModel):
     """A 3-D workspace box ``[xmin, ymin, zmin, xmax, ymax, zmax]`` with box obstacles
-    whose positions are uncertain (Σ_o = ``obstacle_sigma``² I)."""
+    whose positions are uncertain (Σ_o = ``obstacle_sigma``\ ² I)."""
 
     bounds: tuple[float, float, float, float, float, float] = (-5.0, -5.0, 0.0, 5.0, 5.0, 3.0)
     boxes: list[Box3DSpec] = Field(default_factory=list)
@@ -245,7 +245,7 @@ class LayoutSpec(TeamLayoutSpec):
 
 class TeamSpec(SpecModel):
     """A group of identical robots (one model, one controller); all teams share
-    ``robots.radius``. Localisation noise Σ = ``cov`` (2-D only) or ``sigma``² I."""
+    ``robots.radius``. Localisation noise Σ = ``cov`` (2-D only) or ``sigma``\ ² I."""
 
     name: str = ""
     model: ModelSpec = Field(default_factory=ModelSpec)

@@ -1,10 +1,10 @@
-"""``robofleet reproduce buavc-models``: B-UAVC for every robot model of paper 003.
+"""``robofleet reproduce buavc-models``: B-UAVC for every robot model of Zhu et al. 2022.
 
 Zhu, Brito & Alonso-Mora 2022, Secs. 5–6: for each robot model a Monte Carlo over seeds
 and localisation noise σ (Σ = σ² I for the robots, Σ_o = σ² I for the obstacles)
 compares B-UAVC with BVC and inflated BVC, and with ORCA where it applies (holonomic
-single integrators). One shipped sweep per model (and per σ where the teams of a 3D
-scenario carry σ, which a dotted grid path cannot address):
+single integrators). One shipped sweep per model (in 3D each team carries its σ; one grid
+key ``teams.0.sigma+teams.1.sigma+space3d.obstacle_sigma`` moves them together):
 
 * single integrator (``avoidance/antipodal_swap``): buavc, bvc, bvc_inflated, orca;
 * double integrator (``avoidance/double_integrator``, braking rule of Sec. 5.2);
@@ -37,8 +37,7 @@ NOISE_SWEEPS = {  # sweep: model
     "buavc_models_single_integrator": "single_integrator",
     "buavc_models_double_integrator": "double_integrator",
     "buavc_models_diff_drive": "diff_drive",
-    "buavc_models_quadrotor_sigma005": "quadrotor",
-    "buavc_models_quadrotor_sigma010": "quadrotor",
+    "buavc_models_quadrotor": "quadrotor",
     "buavc_models_heterogeneous": "heterogeneous",
 }
 DELTA_SWEEPS = {
@@ -46,11 +45,10 @@ DELTA_SWEEPS = {
     "buavc_models_delta_diff_drive": "diff_drive",
 }
 MODEL_ORDER = ("single_integrator", "double_integrator", "diff_drive", "quadrotor", "heterogeneous")
-SIGMA_KEYS = (SIGMA_KEY, "space3d.obstacle_sigma")
-"""Grid keys naming σ: 2D sweeps tie Σ_o to Σ, 3D sweeps set the teams' σ in their file."""
+SIGMA_KEYS = (SIGMA_KEY, "teams.0.sigma+teams.1.sigma+space3d.obstacle_sigma")
+"""Grid keys naming σ: 2D sweeps tie Σ_o to Σ, 3D sweeps tie both teams' σ to the boxes' σ_o."""
 SEED_SHARES = {
-    "buavc_models_quadrotor_sigma005": 0.2,
-    "buavc_models_quadrotor_sigma010": 0.2,
+    "buavc_models_quadrotor": 0.2,
     "buavc_models_heterogeneous": 0.4,
 }
 """Share of the budget's seeds run by the costly 3D sweeps (MPC: 10–40 s a run, under 2 s in 2D)."""
