@@ -1,5 +1,5 @@
 """B-UAVC: chance-constrained collision avoidance with buffered uncertainty-aware
-Voronoi cells (Zhu, Brito & Alonso-Mora, Autonomous Robots 2022; paper 003).
+Voronoi cells (Zhu, Brito & Alonso-Mora, Autonomous Robots 2022; Zhu et al. 2022).
 
 Public API:
 

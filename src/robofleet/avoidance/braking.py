@@ -1,4 +1,4 @@
-"""Braking rule for double-integrator robots in their B-UAVC (paper 003, Sec. 5.2).
+"""Braking rule for double-integrator robots in their B-UAVC (Zhu et al. 2022, Sec. 5.2).
 
 The paper keeps a double integrator safe with a braking heuristic — "the stopping
 point under maximal deceleration stays in the cell" — without giving its exact form.
@@ -73,7 +73,7 @@ def tracking_control(position: np.ndarray, velocity: np.ndarray, target: np.ndar
     return saturate_norm((v_des - velocity) / dt, params.a_max)
 
 
-def braking_rule(position, velocity, target, A, b, valid, params: DoubleIntegratorParams, dt: float) -> tuple[np.ndarray, np.ndarray]:
+def braking_rule(position: np.ndarray, velocity: np.ndarray, target: np.ndarray, A: np.ndarray, b: np.ndarray, valid: np.ndarray, params: DoubleIntegratorParams, dt: float) -> tuple[np.ndarray, np.ndarray]:
     """Accelerations ``(N, d)`` of the braking rule, vectorized over robots and candidates.
 
     Parameters

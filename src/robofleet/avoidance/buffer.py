@@ -1,4 +1,4 @@
-"""Chance-constrained buffers of the B-UAVC (paper 003; notes/buavc.md "Buffer").
+"""Chance-constrained buffers of the B-UAVC (Zhu et al. 2022; notes/buavc.md "Buffer").
 
 ``β = r_s + Φ⁻¹(√(1 − δ)) · √(aᵀ Σ_i a)`` with ``‖a‖ = 1``. Robot ``i`` then stays on its
 side of the separator, at least ``r_s`` from it, with probability ``≥ √(1 − δ)``; robot
@@ -31,7 +31,7 @@ def shadow_epsilon(delta: float) -> float:
     return 1.0 - np.sqrt(1.0 - delta)
 
 
-def buffer(normals: np.ndarray, cov: np.ndarray, radius, quantile: float) -> np.ndarray:
+def buffer(normals: np.ndarray, cov: np.ndarray, radius: float | np.ndarray, quantile: float) -> np.ndarray:
     """β for unit normals ``(..., d)`` and the ego covariance ``(..., d, d)`` (broadcasting)."""
     if normals.shape[-1] == 2:
         quad = normals[..., 0] * (cov[..., 0, 0] * normals[..., 0] + 2 * cov[..., 0, 1] * normals[..., 1]) + cov[..., 1, 1] * normals[..., 1] ** 2

@@ -1,6 +1,6 @@
 """B-UAVC geometry in R³ (and any low dimension): exact projection onto a polytope cell,
 ε-shadow planes of boxes with yaw whose position is uncertain, and workspace bounds
-with height (paper 003, Sec. 4 and appendix A; ``notes/buavc.md``).
+with height (Zhu et al. 2022, Sec. 4 and appendix A; ``notes/buavc.md``).
 
 A cell is a padded half-space array, as everywhere in :mod:`robofleet.avoidance`:
 unit normals ``A (N, M, d)``, offsets ``b (N, M)`` and a mask ``valid (N, M)``; robot
@@ -193,7 +193,7 @@ def box_shadow_planes(points: np.ndarray, centers: np.ndarray, sizes: np.ndarray
     return normal / scale[..., None], offset / scale
 
 
-def workspace_box_planes(lower, upper) -> tuple[np.ndarray, np.ndarray]:
+def workspace_box_planes(lower: np.ndarray, upper: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The ``2d`` half-spaces ``±e_k·p ≤ ±bound`` of an axis-aligned workspace box (height included in 3D)."""
     lo = np.asarray(lower, dtype=float)
     hi = np.asarray(upper, dtype=float)

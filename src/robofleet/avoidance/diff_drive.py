@@ -1,5 +1,5 @@
 """Differential-drive controller in the B-UAVC: three projections of the goal
-(paper 003, Sec. 5.3; ``notes/buavc.md`` "Controllers"; after the BVC controller of
+(Zhu et al. 2022, Sec. 5.3; ``notes/buavc.md`` "Controllers"; after the BVC controller of
 Zhou et al., RA-L 2017).
 
 For a robot at ``p̂`` with heading ``θ`` and goal ``g``:
@@ -23,13 +23,15 @@ With ``m = (e_ω + e)/2``::
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 
 from ..dynamics.unicycle import UnicycleParams
 from .cell3d import project_onto_polytope
 
 
-def line_interval(origins, directions, A, b, valid) -> tuple[np.ndarray, np.ndarray]:
+def line_interval(origins: np.ndarray, directions: np.ndarray, A: np.ndarray, b: np.ndarray, valid: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The interval ``[lo, hi]`` of ``s`` with ``origin + s·direction`` in the cell (``lo > hi`` if empty)."""
     rate = np.einsum("nmd,nd->nm", A, directions)
     room = b - np.einsum("nmd,nd->nm", A, origins)
@@ -41,7 +43,7 @@ def line_interval(origins, directions, A, b, valid) -> tuple[np.ndarray, np.ndar
     return np.where(parallel_blocked, np.inf, lower), np.where(parallel_blocked, -np.inf, upper)
 
 
-def project_onto_cell_line(origins, directions, goals, A, b, valid) -> tuple[np.ndarray, np.ndarray]:
+def project_onto_cell_line(origins: np.ndarray, directions: np.ndarray, goals: np.ndarray, A: np.ndarray, b: np.ndarray, valid: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Projection of ``goals`` onto cell ∩ line ``origin + s·direction`` (unit directions).
 
     Returns the points ``(N, d)`` and a mask ``(N,)`` of non-empty intersections
@@ -54,7 +56,8 @@ def project_onto_cell_line(origins, directions, goals, A, b, valid) -> tuple[np.
     return origins + s[:, None] * directions, ok
 
 
-def three_projection_control(poses, goals, A, b, valid, params: UnicycleParams, dt: float, project=project_onto_polytope) -> np.ndarray:
+def three_projection_control(poses: np.ndarray, goals: np.ndarray, A: np.ndarray, b: np.ndarray, valid: np.ndarray, params: UnicycleParams, dt: float,
+                             project: Callable[[np.ndarray, np.ndarray, np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]] = project_onto_polytope) -> np.ndarray:
     """Controls ``(N, 2)`` = ``[v, ω]`` of the three-projection controller.
 
     Parameters

@@ -1,4 +1,4 @@
-"""The avoidance family (paper 003, B-UAVC) as the rest of robofleet sees it."""
+"""The avoidance family (Zhu et al. 2022, B-UAVC) as the rest of robofleet sees it."""
 
 from ..core.family import Family
 from .guarantees import check

@@ -1,4 +1,4 @@
-"""The checkable conditions of paper 003 for one scenario (what ``robofleet check`` prints).
+"""The checkable conditions of Zhu et al. 2022 for one scenario (what ``robofleet check`` prints).
 
 B-UAVC's guarantee (Sec. 4, with the ε-shadows of appendix A): a robot that stays in its
 buffered uncertainty-aware Voronoi cell collides with each other robot, and with each

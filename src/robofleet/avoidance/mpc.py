@@ -1,4 +1,4 @@
-"""B-UAVC receding-horizon control (MPC) for any robot model (paper 003, Sec. 5.4 and
+"""B-UAVC receding-horizon control (MPC) for any robot model (Zhu et al. 2022, Sec. 5.4 and
 appendix C; ``notes/buavc.md`` "Controllers").
 
 Each control step robot ``i`` solves ::
@@ -35,6 +35,7 @@ from __future__ import annotations
 import contextlib
 import os
 import sys
+from collections.abc import Iterator
 from dataclasses import dataclass
 from typing import Callable, Literal
 
@@ -100,7 +101,8 @@ class ModelAdapter:
     fallback: Callable  # (states (n, nx)) -> controls (n, nu)
 
 
-def model_adapter(name: str, params, dim: int, dt: float) -> ModelAdapter:
+def model_adapter(name: str, params: SingleIntegratorParams | di.DoubleIntegratorParams | uni.UnicycleParams | quad.QuadrotorParams,
+                  dim: int, dt: float) -> ModelAdapter:
     """The :class:`ModelAdapter` of model ``name`` (one of :data:`MODEL_NAMES`)."""
     inf = np.inf
     if name == "single_integrator":
@@ -344,7 +346,7 @@ class GoalRotation:
 
 
 @contextlib.contextmanager
-def quiet_stdout():
+def quiet_stdout() -> Iterator[None]:
     """Silence C-level writes to standard output (solver banners) for the duration."""
     sys.stdout.flush()
     saved = os.dup(1)

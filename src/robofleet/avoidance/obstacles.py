@@ -1,5 +1,5 @@
 """Separating planes between robots and static obstacles with uncertain position
-(paper 003, appendix A: Lemma 1 and Theorem 1, the ε-shadow).
+(Zhu et al. 2022, appendix A: Lemma 1 and Theorem 1, the ε-shadow).
 
 An obstacle is a convex polygon ``Ô_o`` displaced by ``d_o ~ N(0, Σ_o)``. By Lemma 1 the
 displacement stays in ``D_o = {d : dᵀ Σ_o⁻¹ d ≤ F⁻¹_{χ²_d}(1 − ε)}`` with probability
@@ -14,6 +14,7 @@ the shadow it is ``n·x = n·c + r``. Back in world coordinates the robot's side
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -45,7 +46,7 @@ class ObstacleSet:
         return len(self.vertices)
 
     @classmethod
-    def build(cls, polygons, covariances, epsilon: float) -> "ObstacleSet":
+    def build(cls, polygons: Sequence[np.ndarray], covariances: np.ndarray, epsilon: float) -> "ObstacleSet":
         """Prepare obstacles ``polygons`` (list of ``(V_k, 2)``) with position covariances ``(O, 2, 2)``."""
         if len(polygons) == 0:
             z = np.zeros((0, 2))

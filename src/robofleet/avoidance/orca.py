@@ -1,7 +1,7 @@
 """Optimal reciprocal collision avoidance (ORCA) — J. van den Berg, S. J. Guy, M. Lin,
 D. Manocha, "Reciprocal n-body collision avoidance", Robotics Research (STAR 70), 2011.
 
-The baseline of paper 003 for holonomic robots, vectorized over agents:
+The baseline of Zhu et al. 2022 for holonomic robots, vectorized over agents:
 
 1. *Neighbours* — up to ``max_neighbors`` nearest agents within ``neighbor_dist``
    (k-d tree).
@@ -54,7 +54,7 @@ def neighbours(positions: np.ndarray, params: OrcaParams) -> tuple[np.ndarray, n
     return np.where(ok, idx, 0), ok
 
 
-def orca_halfplanes(rel_pos, rel_vel, own_vel, radius, tau: float, dt: float) -> tuple[np.ndarray, np.ndarray]:
+def orca_halfplanes(rel_pos: np.ndarray, rel_vel: np.ndarray, own_vel: np.ndarray, radius: float | np.ndarray, tau: float, dt: float) -> tuple[np.ndarray, np.ndarray]:
     """ORCA half-planes ``{v : n·(v − q) ≥ 0}`` for arrays of agent pairs ``(..., 2)``.
 
     Parameters
@@ -93,7 +93,7 @@ def orca_halfplanes(rel_pos, rel_vel, own_vel, radius, tau: float, dt: float) ->
     return own_vel + 0.5 * u, n_out
 
 
-def solve_velocity_lp(q: np.ndarray, n: np.ndarray, valid: np.ndarray, v_pref: np.ndarray, v_max) -> tuple[np.ndarray, np.ndarray]:
+def solve_velocity_lp(q: np.ndarray, n: np.ndarray, valid: np.ndarray, v_pref: np.ndarray, v_max: float | np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Nearest velocity to ``v_pref`` in ``D(0, v_max) ∩ {n_k·(v − q_k) ≥ 0}``, all agents at once.
 
     ``q, n (N, K, 2)``, ``valid (N, K)``, ``v_pref (N, 2)``, ``v_max`` scalar or ``(N,)``.
@@ -207,7 +207,7 @@ def _least_violation(q, n, valid, v_max, out):
         out[i, 0], out[i, 1] = b0, b1
 
 
-def orca_velocities(positions, velocities, v_pref, radius, v_max, params: OrcaParams, dt: float) -> tuple[np.ndarray, np.ndarray]:
+def orca_velocities(positions: np.ndarray, velocities: np.ndarray, v_pref: np.ndarray, radius: float | np.ndarray, v_max: float | np.ndarray, params: OrcaParams, dt: float) -> tuple[np.ndarray, np.ndarray]:
     """New velocities ``(N, 2)`` of every agent (one ORCA step, all agents at once).
 
     Parameters
@@ -237,7 +237,7 @@ def orca_velocities(positions, velocities, v_pref, radius, v_max, params: OrcaPa
     return new, ~feasible
 
 
-def preferred_velocities(positions, goals, v_max, dt: float) -> np.ndarray:
+def preferred_velocities(positions: np.ndarray, goals: np.ndarray, v_max: float | np.ndarray, dt: float) -> np.ndarray:
     """``v_pref``: toward the goal at ``min(v_max, distance/Δt)``."""
     gap = goals - positions
     dist = np.linalg.norm(gap, axis=-1, keepdims=True)

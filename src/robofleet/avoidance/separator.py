@@ -1,4 +1,4 @@
-"""Best linear separator between two Gaussians (paper 003, appendix B).
+"""Best linear separator between two Gaussians (Zhu et al. 2022, appendix B).
 
 For robots ``i`` and ``j`` with position estimates ``N(p̂_i, Σ_i)`` and ``N(p̂_j, Σ_j)``
 the separator minimises the larger of the two misclassification probabilities
@@ -30,7 +30,7 @@ _TOL_T = 1e-12
 _MAX_ITER = 100
 
 
-def gaussian_separator(mean_i, cov_i, mean_j, cov_j) -> tuple[np.ndarray, np.ndarray]:
+def gaussian_separator(mean_i: np.ndarray, cov_i: np.ndarray, mean_j: np.ndarray, cov_j: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Minimax linear separator between ``N(mean_i, cov_i)`` and ``N(mean_j, cov_j)``.
 
     Parameters

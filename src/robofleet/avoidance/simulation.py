@@ -1,4 +1,4 @@
-"""The closed loop of paper 003 for every robot model and team: spec → world → steps → Trace.
+"""The closed loop of Zhu et al. 2022 for every robot model and team: spec → world → steps → Trace.
 
 Every step (notes/buavc.md "Noise"): each robot's position estimate is its TRUE position
 plus a draw from ``N(0, Σ)`` (velocities, headings and attitudes are measured exactly),
@@ -265,7 +265,7 @@ def ground_section(cells: Cells, z: float) -> Cells:
     return Cells(A, np.where(keep, b, 1.0), keep, cells.kind, cells.source)
 
 
-def project_2d(points, A, b, valid):
+def project_2d(points: np.ndarray, A: np.ndarray, b: np.ndarray, valid: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Exact projection onto 2-D cells in the ``(points, A, b, valid) -> (proj, ok)`` form
     :func:`~.diff_drive.three_projection_control` takes."""
     proj = project_onto_cells(points, Cells(A, b, valid, np.zeros(valid.shape, np.int8), np.zeros(valid.shape, np.intp)))

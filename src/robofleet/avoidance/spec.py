@@ -1,4 +1,4 @@
-"""Scenario files of the avoidance family (paper 003, B-UAVC): the one validated ``Spec``.
+"""Scenario files of the avoidance family (Zhu et al. 2022, B-UAVC): the one validated ``Spec``.
 
 A scenario describes one or more *teams* of robots sharing a safety radius ``r_s``. The
 2-D single-integrator team of the authors' main setup is written with the short
@@ -42,7 +42,8 @@ Example (3-D quadrotors, teams)::
 
 from __future__ import annotations
 
-from typing import Literal, Optional
+from collections.abc import Sequence
+from typing import Any, Literal, Optional
 
 import numpy as np
 from pydantic import Field, field_validator, model_validator
@@ -100,7 +101,7 @@ class AvoidanceWorkspaceSpec(WorkspaceSpec):
         return np.asarray(self.obstacle_cov, float) if self.obstacle_cov is not None else self.obstacle_sigma**2 * np.eye(2)
 
 
-def checked_covariance(value) -> np.ndarray:
+def checked_covariance(value: Any) -> np.ndarray:
     """``value`` as a symmetric positive semi-definite 2×2 matrix, or a :class:`ScenarioError`."""
     cov = np.asarray(value, float) if np.ndim(value) == 2 else None
     if cov is None or cov.shape != (2, 2) or not np.all(np.isfinite(cov)):
@@ -135,7 +136,7 @@ class Box3DSpec(SpecModel):
 
 class Space3DSpec(SpecModel):
     """A 3-D workspace box ``[xmin, ymin, zmin, xmax, ymax, zmax]`` with box obstacles
-    whose positions are uncertain (Σ_o = ``obstacle_sigma``\ ² I)."""
+    whose positions are uncertain (Σ_o = ``obstacle_sigma``\\ ² I)."""
 
     bounds: tuple[float, float, float, float, float, float] = (-5.0, -5.0, 0.0, 5.0, 5.0, 3.0)
     boxes: list[Box3DSpec] = Field(default_factory=list)
@@ -245,7 +246,7 @@ class LayoutSpec(TeamLayoutSpec):
 
 class TeamSpec(SpecModel):
     """A group of identical robots (one model, one controller); all teams share
-    ``robots.radius``. Localisation noise Σ = ``cov`` (2-D only) or ``sigma``\ ² I."""
+    ``robots.radius``. Localisation noise Σ = ``cov`` (2-D only) or ``sigma``\\ ² I."""
 
     name: str = ""
     model: ModelSpec = Field(default_factory=ModelSpec)
@@ -306,7 +307,7 @@ class DeadlockSpec(SpecModel):
 # the scenario
 # ---------------------------------------------------------------------------------------
 class Spec(SpecModel):
-    """A B-UAVC scenario (paper 003): method, chance threshold δ, workspace (2-D
+    """A B-UAVC scenario (Zhu et al. 2022): method, chance threshold δ, workspace (2-D
     ``workspace`` or 3-D ``space3d``) and teams (``robots`` + ``model``, or ``teams``)."""
 
     family: Literal["avoidance"] = "avoidance"
@@ -370,7 +371,7 @@ class Spec(SpecModel):
 # ---------------------------------------------------------------------------------------
 # cross-field checks
 # ---------------------------------------------------------------------------------------
-def reject_3d_obstacles_in_2d(data):
+def reject_3d_obstacles_in_2d(data: Any) -> Any:
     """Before validation: a 3-D box under ``workspace.obstacles`` gets a clear one-line error."""
     if not isinstance(data, dict):
         return data
@@ -501,7 +502,7 @@ def team_points(team: TeamSpec, dim: int, ground_z: float) -> tuple[np.ndarray, 
     return starts, goals
 
 
-def explicit_points(points, dim: int, team: TeamSpec) -> np.ndarray:
+def explicit_points(points: Sequence[Sequence[float]], dim: int, team: TeamSpec) -> np.ndarray:
     """Explicit starts or goals as ``(n, dim)``: quadrotors give ``[x, y, z]``, ground
     robots ``[x, y]`` (their plane's height is added in 3-D)."""
     pts = np.asarray(points, float)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from typing import Any
 
+import pandas as pd
 from rich.table import Table
 
 MIN_TABLE_COLUMNS = 3  # value columns shown however narrow the terminal
@@ -26,7 +27,7 @@ def key_value_table(mapping: dict, title: str) -> Table:
     return table
 
 
-def frame_table(frame, title: str, leading: int = 0, values: int = MIN_TABLE_COLUMNS) -> Table:
+def frame_table(frame: pd.DataFrame, title: str, leading: int = 0, values: int = MIN_TABLE_COLUMNS) -> Table:
     """A rich table of a small DataFrame: its first ``leading`` columns (grid values,
     counts) and at most ``values`` more."""
     columns = list(frame.columns)

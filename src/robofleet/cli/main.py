@@ -13,6 +13,7 @@ from importlib.metadata import version as installed_version
 from pathlib import Path
 from typing import Annotated, Optional
 
+import pandas as pd
 import typer
 from rich.console import Console
 
@@ -142,7 +143,7 @@ def sweep_command(
         typer.echo(f"first failure: run {first['run_id']}: {first['error']}")
 
 
-def print_means(frame) -> None:
+def print_means(frame: pd.DataFrame) -> None:
     """The sweep's means per grid combination, the headline columns first."""
     means = summarize_sweep(frame)
     leading = list(means.columns[: len(frame.attrs["grid"]) + 2])

@@ -1,4 +1,4 @@
-"""Deadlock-free execution of multi-robot plans under disturbances (paper 000).
+"""Deadlock-free execution of multi-robot plans under disturbances (the label-flipping deadlock paper (2021)).
 
 RMTRACK (Eq. 1), label flipping (RMTRACK+TFF, RMTRACK+TFA), the segment graph
 (Definition 3) with incremental and full cycle tests, the theory checks (Definition 4,

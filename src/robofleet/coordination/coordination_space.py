@@ -1,4 +1,4 @@
-"""Coordination-space obstacles of every robot pair (paper 000, "Summary of baseline approaches").
+"""Coordination-space obstacles of every robot pair (the label-flipping deadlock paper (2021), "Summary of baseline approaches").
 
 For robots ``i < j`` the obstacle region is
 ``O_ij = {(k_i, k_j) : ‖π_i(k_i) − π_j(k_j)‖ < 2r}``; its 4-connected components are the
@@ -12,7 +12,7 @@ robot that may have to wait for it:
 
 A side is *active* when the obstacle's label is the other robot. Profiles of all sides
 are concatenated into one flat array so that Eq. 1 is evaluated for all robots with a
-handful of numpy operations (:mod:`.rmtrack`).
+handful of numpy operations (:mod:`~robofleet.coordination.rmtrack`).
 
 Construction cost: a naive grid is ``O(K_i K_j)`` per pair. Here trajectories are cut in
 windows of ``window`` steps; only window pairs whose swept bounding boxes come closer than
@@ -89,25 +89,27 @@ class CoordinationSpace:
 def build_coordination_space(traj: Trajectories, window: int = 32, check_plan: bool = True) -> CoordinationSpace:
     """Compute every coordination-space obstacle of a plan.
 
+    Complexity: ``O(n²)`` box tests, then ``O(w²)`` distances only per close window pair.
+
     Parameters
     ----------
-    traj: the plan.
-    window: steps per window for the swept-bounding-box pruning.
-    check_plan: raise if the plan itself collides (labels would be undefined).
+    traj:
+        the plan.
+    window:
+        steps per window for the swept-bounding-box pruning.
+    check_plan:
+        raise if the plan itself collides (labels would be undefined).
 
     Returns
     -------
-    CoordinationSpace with labels initialised from the plan: ``ℓ(o) = i`` when every cell
-    ``(k_i, k_j)`` of ``o`` has ``k_i < k_j`` (robot ``i`` is there first in plan time).
+    CoordinationSpace
+        with labels initialised from the plan: ``ℓ(o) = i`` when every cell
+        ``(k_i, k_j)`` of ``o`` has ``k_i < k_j`` (robot ``i`` is there first in plan time).
 
     Raises
     ------
     InfeasibleError
         When the plan collides (some obstacle is crossed by the plan's own path).
-
-    Complexity
-    ----------
-    ``O(n²)`` box tests, then ``O(w²)`` distances only per close window pair.
     """
     boxes = _window_boxes(traj, window)
     reach = 2.0 * traj.radius

@@ -1,4 +1,4 @@
-"""Checks of the theory's preconditions (paper 000, Definition 4 and Theorem 4), and
+"""Checks of the theory's preconditions (the label-flipping deadlock paper (2021), Definition 4 and Theorem 4), and
 :func:`check`, what ``robofleet check`` prints for a scenario.
 
 * Definition 4 — *non-conflicting* trajectories: no robot's path comes within ``2r`` of

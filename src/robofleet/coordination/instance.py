@@ -1,5 +1,5 @@
 """The instance a run executes: the plan (planned by RPP or read from a file) and its
-coordination space (paper 000, "Problem Statement" and "Summary of baseline approaches").
+coordination space (the label-flipping deadlock paper (2021), "Problem Statement" and "Summary of baseline approaches").
 
 Instances of ``placement: flows`` are drawn from ``robots.instance_seed``, or from the
 run's seed when that is null; a draw the planner cannot solve (no valid infrastructure)
@@ -41,12 +41,18 @@ class Instance:
 
     Attributes
     ----------
-    trajectories: the plan ``π_i``.
-    space: its coordination-space obstacles, labels initialised from the plan.
-    instance_seed: the seed the starts and goals were drawn from (``None`` when explicit).
-    attempt: which draw of that seed the planner solved (0 = the first).
-    seconds: wall time to plan (or read) it and build its coordination space.
-    digest: a hash of the plan's arrays: runs with equal digests executed the same plan.
+    trajectories:
+        the plan ``π_i``.
+    space:
+        its coordination-space obstacles, labels initialised from the plan.
+    instance_seed:
+        the seed the starts and goals were drawn from (``None`` when explicit).
+    attempt:
+        which draw of that seed the planner solved (0 = the first).
+    seconds:
+        wall time to plan (or read) it and build its coordination space.
+    digest:
+        a hash of the plan's arrays: runs with equal digests executed the same plan.
     """
 
     trajectories: Trajectories
@@ -153,7 +159,7 @@ def instance_from(traj: Trajectories, instance_seed: int | None, attempt: int, t
     return Instance(traj, space, instance_seed, attempt, time.perf_counter() - t0, plan_digest(traj))
 
 
-def read_only(obj) -> None:
+def read_only(obj: Trajectories | CoordinationSpace) -> None:
     """Mark every array field of the dataclass ``obj`` read-only."""
     for f in dataclasses.fields(obj):
         value = getattr(obj, f.name)

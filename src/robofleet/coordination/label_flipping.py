@@ -1,4 +1,4 @@
-"""Label flipping: RMTRACK+TFF and RMTRACK+TFA (Coskun & O'Kane 2019, as summarised in paper 000).
+"""Label flipping: RMTRACK+TFF and RMTRACK+TFA (Coskun & O'Kane 2019, as summarised in the label-flipping deadlock paper (2021)).
 
 When robot ``w`` waits for an obstacle ``o`` labelled ``a`` (first case of Eq. 1), a flip
 test predicts from expected travel times whether ``ℓ(o) := w`` reduces the pair's travel
@@ -54,7 +54,7 @@ class KnownProbabilities:
     def probabilities(self, robot: int, start: int, stop: int) -> np.ndarray:
         return self.probability[robot, start:stop]
 
-    def observe(self, cells_or_positions, attempted, disturbed) -> None:
+    def observe(self, cells_or_positions: np.ndarray, attempted: np.ndarray, disturbed: np.ndarray) -> None:
         """Known probabilities do not learn."""
 
 
@@ -69,8 +69,10 @@ class LearnedProbabilities:
 
     Parameters
     ----------
-    cell_of_step: ``(n, K_max + 1)`` grid cell index of ``π_i(k)``.
-    n_cells: number of grid cells.
+    cell_of_step:
+        ``(n, K_max + 1)`` grid cell index of ``π_i(k)``.
+    n_cells:
+        number of grid cells.
     """
 
     cell_of_step: np.ndarray

@@ -1,4 +1,4 @@
-"""The X-plus-corridor map of paper 000's experiment (Fig. 1) and its three flows.
+"""The X-plus-corridor map of the label-flipping deadlock paper (2021)'s experiment (Fig. 1) and its three flows.
 
 The exact polygon is not published; this one has the published dimensions (3000 × 2400,
 length unit ≈ 2 cm) and makes the three flows cross:
@@ -22,6 +22,8 @@ index mod 5     start box (x, y ranges)      goal box
 """
 
 from __future__ import annotations
+
+from collections.abc import Iterable
 
 import numpy as np
 import shapely
@@ -64,7 +66,7 @@ def x_corridor_workspace(region_probability: float = 0.85) -> Workspace:
     )
 
 
-def workspace_from_free_space(free, regions=()) -> Workspace:
+def workspace_from_free_space(free: Polygon, regions: Iterable[Region] = ()) -> Workspace:
     """A workspace whose bounds are the free polygon's exterior and whose obstacles are its holes."""
     exterior = np.asarray(free.exterior.coords, dtype=float)[:-1]
     holes = tuple(np.asarray(h.coords, dtype=float)[:-1] for h in free.interiors)

@@ -1,6 +1,6 @@
 """Per-run results of a coordination run, written into ``trace.results`` (so every sweep
 row carries them): the outcome (Definition 1's deadlock, finished, collisions), the flips
-(paper 000's Fig. 6 c), their decision time (Fig. 6 b) and the travel times (Fig. 6 a).
+(the label-flipping deadlock paper (2021)'s Fig. 6 c), their decision time (Fig. 6 b) and the travel times (Fig. 6 a).
 
 Every key is documented in :data:`RESULTS` (the family's ``results`` table).
 """

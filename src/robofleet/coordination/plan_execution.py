@@ -1,4 +1,4 @@
-"""Discrete-step execution of a plan under disturbances (paper 000, "Problem Statement").
+"""Discrete-step execution of a plan under disturbances (the label-flipping deadlock paper (2021), "Problem Statement").
 
 Each step every robot chooses ``a_i(t)`` by RMTRACK (Eq. 1), possibly after flip tests
 (TFF/TFA, optionally guarded by the segment-graph cycle test); the disturbance
@@ -156,16 +156,25 @@ class PlanExecutor:
 
     Parameters
     ----------
-    traj, space: the plan and its coordination space.
-    variant: method and whether flips are guarded by the segment-graph cycle test.
-    times: expected-time model for the flip tests (known or learned probabilities).
-    probability: ``(n, K_max + 1)`` true disturbance probability at each plan step.
-    layout: segment layout (built on demand when the check is on).
-    flip_test: override of the flip test (tests use it to inject arbitrary flips).
-    detector: the cycle-test class (``IncrementalCycleDetector``; tests and benchmarks pass
+    traj, space:
+        the plan and its coordination space.
+    variant:
+        method and whether flips are guarded by the segment-graph cycle test.
+    times:
+        expected-time model for the flip tests (known or learned probabilities).
+    probability:
+        ``(n, K_max + 1)`` true disturbance probability at each plan step.
+    layout:
+        segment layout (built on demand when the check is on).
+    flip_test:
+        override of the flip test (tests use it to inject arbitrary flips).
+    detector:
+        the cycle-test class (``IncrementalCycleDetector``; tests and benchmarks pass
         a subclass that checks or times each answer against the full reference).
-    disturbed: override ``disturbed(step, progress) -> bool (n,)`` of the random disturbances.
-    observe_cells: ``(n, K_max + 1)`` map cells for a learned estimate.
+    disturbed:
+        override ``disturbed(step, progress) -> bool (n,)`` of the random disturbances.
+    observe_cells:
+        ``(n, K_max + 1)`` map cells for a learned estimate.
     """
 
     traj: Trajectories

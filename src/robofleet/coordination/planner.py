@@ -1,5 +1,5 @@
 """Revised prioritized planning (RPP; Čáp, Novák, Kleiner & Selecký 2015), the planner that
-produces paper 000's initial trajectories.
+produces the label-flipping deadlock paper (2021)'s initial trajectories.
 
 Robots plan one after another in priority order (robot index). Robot ``i`` runs a
 space-time A* on a roadmap (a grid of spacing ``grid_spacing`` inside the free space

@@ -1,4 +1,4 @@
-"""RMTRACK's action rule (paper 000, Eq. 1; Čáp, Gregoire & Frazzoli 2016).
+"""RMTRACK's action rule (the label-flipping deadlock paper (2021), Eq. 1; Čáp, Gregoire & Frazzoli 2016).
 
 Robot ``i`` waits at step ``t`` if some obstacle ``o_ij`` with label ``j`` meets the line
 ``{x_i(t) + 1} × {x_j(t), …, K_j}``; it is finished at ``x_i = K_i``; otherwise it moves.

@@ -1,4 +1,4 @@
-"""Segment graph (paper 000, Definition 3), its active subgraph and cycle tests.
+"""Segment graph (the label-flipping deadlock paper (2021), Definition 3), its active subgraph and cycle tests.
 
 Vertices
     Each robot's path ``0..K_i`` is cut into maximal segments at the steps where it
@@ -58,10 +58,14 @@ class SegmentLayout:
 
     Attributes
     ----------
-    node_robot, node_start: ``(V,)`` robot and first step of each segment (sorted by robot, step).
-    robot_first_node: ``(n + 1,)`` index of each robot's first vertex (CSR-style).
-    path_src, path_dst: path-sequence edges.
-    edge_side, edge_src, edge_dst: obstacle-label edges; an edge exists when the label of
+    node_robot, node_start:
+        ``(V,)`` robot and first step of each segment (sorted by robot, step).
+    robot_first_node:
+        ``(n + 1,)`` index of each robot's first vertex (CSR-style).
+    path_src, path_dst:
+        path-sequence edges.
+    edge_side, edge_src, edge_dst:
+        obstacle-label edges; an edge exists when the label of
         its side's obstacle is the side's other robot.
     """
 

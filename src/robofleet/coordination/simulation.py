@@ -56,7 +56,7 @@ def simulate(spec: Spec, seed: int | None = None, progress: bool = False) -> Tra
     -------
     Trace
         Arrays, events (``flip``, ``flip_refused``, ``arrived``, ``collision``,
-        ``deadlock``, ``timeout``), metadata and the results of :mod:`.metrics`.
+        ``deadlock``, ``timeout``), metadata and the results of :mod:`~robofleet.coordination.metrics`.
     """
     seed = resolve_seed(seed)
     workspace = spec.build_workspace()
@@ -99,9 +99,12 @@ class RecordedExecution:
 
     Parameters
     ----------
-    rec: the recorder (arrays are declared here).
-    executor: the policy on the plan.
-    state: the executor's state at ``t = 0``.
+    rec:
+        the recorder (arrays are declared here).
+    executor:
+        the policy on the plan.
+    state:
+        the executor's state at ``t = 0``.
     """
 
     def __init__(self, rec: Recorder, executor: PlanExecutor, state: ExecutionState):

@@ -11,7 +11,7 @@ Example::
 
 ``workspace``
     The shared vocabulary of :mod:`robofleet.core.spec_blocks` (``bounds``, ``obstacles``,
-    ``regions``) plus ``preset: x_corridor``, the map of paper 000's Fig. 1 (the default).
+    ``regions``) plus ``preset: x_corridor``, the map of the label-flipping deadlock paper (2021)'s Fig. 1 (the default).
     Giving ``bounds`` means a map of one's own (``preset`` then defaults to null).
     Obstacles and regions given with the preset are added to the preset map. Every
     region carries the disturbance ``probability`` of the robots inside it.
@@ -48,7 +48,7 @@ from .trajectories import Trajectories, load_trajectories
 
 
 class DisturbanceRegionSpec(RegionSpec):
-    """A named polygon inside which a robot's step fails with ``probability`` (paper 000's red region)."""
+    """A named polygon inside which a robot's step fails with ``probability`` (the label-flipping deadlock paper (2021)'s red region)."""
 
     probability: float = Field(ge=0.0, lt=1.0)
 

@@ -1,4 +1,4 @@
-"""Discrete trajectories π_i : {0, …, K_i} → W (paper 000, "Problem Statement").
+"""Discrete trajectories π_i : {0, …, K_i} → W (the label-flipping deadlock paper (2021), "Problem Statement").
 
 A plan is stored as one padded float64 array ``positions`` of shape ``(n, K_max + 1, 2)``
 (rows after ``K_i`` repeat the goal: a finished robot stays parked) and the int array
@@ -23,10 +23,14 @@ class Trajectories:
 
     Attributes
     ----------
-    positions: ``(n, K_max + 1, 2)`` float64; ``positions[i, k] = π_i(k)``, padded with the goal.
-    lengths: ``(n,)`` int; ``K_i``, the first step from which robot ``i`` stays at its goal.
-    radius: robot radius ``r`` (robots ``i``, ``j`` collide when ``‖π_i − π_j‖ < 2r``).
-    dt: seconds per step (Δ).
+    positions:
+        ``(n, K_max + 1, 2)`` float64; ``positions[i, k] = π_i(k)``, padded with the goal.
+    lengths:
+        ``(n,)`` int; ``K_i``, the first step from which robot ``i`` stays at its goal.
+    radius:
+        robot radius ``r`` (robots ``i``, ``j`` collide when ``‖π_i − π_j‖ < 2r``).
+    dt:
+        seconds per step (Δ).
     """
 
     positions: np.ndarray

@@ -11,13 +11,15 @@ from __future__ import annotations
 
 import copy
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any, Mapping, TypeVar
 
 import numpy as np
 import yaml
 from pydantic import BaseModel, ConfigDict, PrivateAttr, ValidationError
 
 from .errors import ScenarioError
+
+_Model = TypeVar("_Model", bound=BaseModel)
 
 YAML_LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
 """libyaml's safe loader where PyYAML was built with it (about 10× faster), else PyYAML's."""
@@ -62,7 +64,7 @@ def read_mapping(path_or_mapping: str | Path | Mapping[str, Any]) -> tuple[dict,
     return data, source
 
 
-def validate_model(model: type[BaseModel], data: Mapping[str, Any], source: str | None):
+def validate_model(model: type[_Model], data: Mapping[str, Any], source: str | None) -> _Model:
     """Validate ``data`` with ``model``; turn the first failure into a :class:`ScenarioError`.
 
     Validators see the file the data came from as ``info.context["source"]`` (``None``
@@ -135,7 +137,7 @@ def list_element(items: list, key: str, where: str) -> Any:
     return items[index]
 
 
-def as_array(value, shape_tail: tuple[int, ...], field: str) -> np.ndarray:
+def as_array(value: Any, shape_tail: tuple[int, ...], field: str) -> np.ndarray:
     """A finite float64 array whose trailing shape is ``shape_tail`` (``-1`` = any)."""
     try:
         arr = np.asarray(value, dtype=float)

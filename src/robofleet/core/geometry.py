@@ -6,11 +6,13 @@ robots in Python.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 from scipy.spatial import cKDTree
 
 
-def box_vertices(center, size, yaw: float = 0.0) -> np.ndarray:
+def box_vertices(center: Sequence[float] | np.ndarray, size: Sequence[float] | np.ndarray, yaw: float = 0.0) -> np.ndarray:
     """Counter-clockwise vertices ``(4, 2)`` of a ``size[0] × size[1]`` box at ``center``."""
     cx, cy = np.asarray(center, dtype=float)[:2]
     hx, hy = 0.5 * np.asarray(size, dtype=float)[:2]
@@ -96,7 +98,7 @@ def nearest_neighbour_distance(points: np.ndarray) -> np.ndarray:
     return d[:, 1]
 
 
-def rotation_2d(angle) -> np.ndarray:
+def rotation_2d(angle: float | np.ndarray) -> np.ndarray:
     """Rotation matrices ``(..., 2, 2)`` for angles ``(...)`` (counter-clockwise positive)."""
     a = np.asarray(angle, dtype=float)
     c, s = np.cos(a), np.sin(a)

@@ -21,6 +21,7 @@ obstacles for the grid search); the vocabulary itself stays one.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from typing import Any, Optional, Union
 
 import numpy as np
@@ -64,7 +65,7 @@ def is_convex(vertices: np.ndarray) -> bool:
     return bool(np.isclose(poly.convex_hull.area, poly.area))
 
 
-def rounded_rectangle(rectangle, radius: float, step_degrees: float = ARC_STEP_DEGREES) -> np.ndarray:
+def rounded_rectangle(rectangle: Sequence[float], radius: float, step_degrees: float = ARC_STEP_DEGREES) -> np.ndarray:
     """Counter-clockwise vertices of a rectangle whose corners are arcs of ``radius``."""
     x0, y0, x1, y1 = rectangle
     centres = [(x1 - radius, y0 + radius, -90.0), (x1 - radius, y1 - radius, 0.0),

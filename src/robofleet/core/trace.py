@@ -122,7 +122,7 @@ def _workspace_from_json(doc) -> Workspace | None:
     return Workspace(np.asarray(doc["bounds"], float), tuple(np.asarray(o, float) for o in doc["obstacles"]), regions)
 
 
-def to_plain(obj, *, json_safe: bool = False):
+def to_plain(obj: Any, *, json_safe: bool = False) -> Any:
     """Convert numpy scalars/arrays (recursively) to plain Python.
 
     With ``json_safe`` non-finite floats become ``None`` so the output is strict JSON.
@@ -140,6 +140,6 @@ def to_plain(obj, *, json_safe: bool = False):
     return obj
 
 
-def dumps_json(obj) -> str:
+def dumps_json(obj: Any) -> str:
     """Strict JSON text of ``obj`` (numpy converted, NaN/inf as ``null``)."""
     return json.dumps(to_plain(obj, json_safe=True), indent=1, allow_nan=False)

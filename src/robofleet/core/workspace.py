@@ -7,12 +7,14 @@ in hot paths.
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 from typing import Any, Mapping
 
 import numpy as np
 import shapely
 from shapely.geometry import Polygon, box
+from shapely.geometry.base import BaseGeometry
 
 from . import geometry
 
@@ -55,7 +57,7 @@ class Workspace:
     regions: tuple[Region, ...] = ()
 
     @classmethod
-    def rectangle(cls, xmin: float, ymin: float, xmax: float, ymax: float, obstacles=(), regions=()) -> "Workspace":
+    def rectangle(cls, xmin: float, ymin: float, xmax: float, ymax: float, obstacles: Iterable[np.ndarray] = (), regions: Iterable[Region] = ()) -> "Workspace":
         """A rectangular workspace ``[xmin, xmax] × [ymin, ymax]``."""
         bounds = np.array([[xmin, ymin], [xmax, ymin], [xmax, ymax], [xmin, ymax]], dtype=float)
         return cls(bounds, tuple(geometry.ensure_ccw(o) for o in obstacles), tuple(regions))
@@ -69,7 +71,7 @@ class Workspace:
         return [Polygon(o) for o in self.obstacles]
 
     @property
-    def free_polygon(self):
+    def free_polygon(self) -> BaseGeometry:
         """The free space ``bounds \\ ∪ obstacles`` as a shapely geometry."""
         return self.boundary_polygon.difference(shapely.union_all(self.obstacle_polygons)) if self.obstacles else self.boundary_polygon
 

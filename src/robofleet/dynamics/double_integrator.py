@@ -1,4 +1,4 @@
-"""Double integrator ``p̈ = a`` with acceleration and speed limits (paper 003, Sec. 5.2).
+"""Double integrator ``p̈ = a`` with acceleration and speed limits (Zhu et al. 2022, Sec. 5.2).
 
 State ``(..., 2d)`` = ``[p, v]``; control ``(..., d)`` = acceleration. The step is the
 exact zero-order-hold discretisation
@@ -12,6 +12,8 @@ points ``p``, ``p + v Δt/2``, ``p[k+1]``).
 """
 
 from __future__ import annotations
+
+from typing import Any
 
 import numpy as np
 from pydantic import Field
@@ -32,7 +34,7 @@ def split_state(state: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return state[..., :d], state[..., d:]
 
 
-def saturate_norm(vectors: np.ndarray, limit) -> np.ndarray:
+def saturate_norm(vectors: np.ndarray, limit: float | np.ndarray) -> np.ndarray:
     """Scale vectors ``(..., d)`` down to norm ≤ ``limit`` (direction kept)."""
     norm = np.linalg.norm(vectors, axis=-1, keepdims=True)
     return vectors * np.minimum(1.0, limit / np.maximum(norm, 1e-300))
@@ -57,7 +59,7 @@ def step(state: np.ndarray, control: np.ndarray, dt: float, params: DoubleIntegr
     return np.concatenate([p + v * dt + 0.5 * a * dt * dt, v + a * dt], axis=-1)
 
 
-def symbolic_step(x, u, dt: float, params: DoubleIntegratorParams, dim: int):
+def symbolic_step(x: Any, u: Any, dt: float, params: DoubleIntegratorParams, dim: int) -> Any:
     """The same map for casadi column vectors (no saturation: the MPC bounds the input)."""
     p, v = x[:dim], x[dim:]
     return _vertcat(p + v * dt + 0.5 * u * dt * dt, v + u * dt)

@@ -1,4 +1,4 @@
-"""Quadrotor model of paper 003, appendix D (Parrot Bebop 2, identified parameters).
+"""Quadrotor model of Zhu et al. 2022, appendix D (Parrot Bebop 2, identified parameters).
 
 State ``x = [p (3), v (3), φ, θ, ψ] ∈ R⁹``; input ``u = [φ_c, θ_c, v_zc, ψ̇_c] ∈ R⁴``
 (commanded roll, pitch, vertical speed, yaw rate). Appendix D, Eqs. (52)–(53):
@@ -12,6 +12,9 @@ integrated with the classical fourth-order Runge–Kutta rule, the input held ov
 """
 
 from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 from pydantic import Field
@@ -44,7 +47,8 @@ class QuadrotorParams(SpecModel):
         return -hi, hi
 
 
-def derivative(x: list, u: list, params: QuadrotorParams, sin=np.sin, cos=np.cos, tan=np.tan) -> list:
+def derivative(x: list, u: list, params: QuadrotorParams, sin: Callable[[Any], Any] = np.sin, cos: Callable[[Any], Any] = np.cos,
+               tan: Callable[[Any], Any] = np.tan) -> list:
     """Appendix D right-hand side on component lists (numpy arrays or casadi symbols)."""
     _, _, _, vx, vy, vz, phi, theta, psi = x
     phi_c, theta_c, vz_c, yaw_rate_c = u
@@ -63,7 +67,7 @@ def derivative(x: list, u: list, params: QuadrotorParams, sin=np.sin, cos=np.cos
     ]
 
 
-def rk4(x: list, u: list, dt: float, params: QuadrotorParams, **ops) -> list:
+def rk4(x: list, u: list, dt: float, params: QuadrotorParams, **ops: Callable[[Any], Any]) -> list:
     """One classical RK4 step on component lists."""
     k1 = derivative(x, u, params, **ops)
     k2 = derivative([a + 0.5 * dt * k for a, k in zip(x, k1)], u, params, **ops)
@@ -86,7 +90,7 @@ def step(state: np.ndarray, control: np.ndarray, dt: float, params: QuadrotorPar
     return np.stack(out, axis=-1)
 
 
-def symbolic_step(x, u, dt: float, params: QuadrotorParams):
+def symbolic_step(x: Any, u: Any, dt: float, params: QuadrotorParams) -> Any:
     """The RK4 step for casadi column vectors ``x`` (9) and ``u`` (4)."""
     import casadi as ca
 

@@ -1,4 +1,4 @@
-"""Differential-drive (unicycle) robot ``ẋ = v cos θ, ẏ = v sin θ, θ̇ = ω`` (paper 003,
+"""Differential-drive (unicycle) robot ``ẋ = v cos θ, ẏ = v sin θ, θ̇ = ω`` (Zhu et al. 2022,
 Sec. 5.3), integrated with the second-order Runge–Kutta (midpoint) rule as in the
 authors' release.
 
@@ -7,6 +7,9 @@ State ``(..., 3)`` = ``[x, y, θ]``; control ``(..., 2)`` = ``[v, ω]``, saturat
 """
 
 from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 from pydantic import Field
@@ -27,7 +30,8 @@ def saturate(control: np.ndarray, params: UnicycleParams) -> np.ndarray:
     return np.stack([np.clip(c[..., 0], -params.v_max, params.v_max), np.clip(c[..., 1], -params.omega_max, params.omega_max)], axis=-1)
 
 
-def derivative(x, y, theta, v, omega, sin=np.sin, cos=np.cos):
+def derivative(x: Any, y: Any, theta: Any, v: Any, omega: Any, sin: Callable[[Any], Any] = np.sin,
+               cos: Callable[[Any], Any] = np.cos) -> tuple[Any, Any, Any]:
     """Continuous-time right-hand side ``(ẋ, ẏ, θ̇)``; ``sin``/``cos`` may be casadi's."""
     return v * cos(theta), v * sin(theta), omega
 
@@ -42,7 +46,7 @@ def step(state: np.ndarray, control: np.ndarray, dt: float, params: UnicyclePara
     return np.stack(_rk2(s[..., 0], s[..., 1], s[..., 2], c[..., 0], c[..., 1], dt, np.sin, np.cos), axis=-1)
 
 
-def symbolic_step(x, u, dt: float, params: UnicycleParams):
+def symbolic_step(x: Any, u: Any, dt: float, params: UnicycleParams) -> Any:
     """The RK2 step for casadi column vectors ``x`` (3) and ``u`` (2)."""
     import casadi as ca
 

@@ -22,9 +22,13 @@ import signal
 from collections import deque
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
-from typing import Any, Callable, Iterator, Mapping
+from types import ModuleType
+from typing import TYPE_CHECKING, Any, Callable, Iterator, Mapping
 
 from ..core.errors import ConfigError, RobofleetError
+
+if TYPE_CHECKING:
+    from distributed import Client, LocalCluster
 
 Outcome = tuple[str, Any]
 TaskFn = Callable[[dict], "dict | list[dict]"]
@@ -180,7 +184,7 @@ class ProcessRunner:
             process.terminate()
 
 
-def import_distributed():
+def import_distributed() -> ModuleType:
     """The ``distributed`` package, or a clear error naming the optional extra."""
     try:
         import distributed
@@ -189,7 +193,7 @@ def import_distributed():
     return distributed
 
 
-def dask_client(scheduler: str | None, workers: int | None):
+def dask_client(scheduler: str | None, workers: int | None) -> tuple[Client, LocalCluster | None]:
     """A ``distributed.Client`` on ``scheduler``, or on a new ``LocalCluster``.
 
     Returns ``(client, cluster)``; ``cluster`` is ``None`` for an external scheduler.
@@ -221,7 +225,8 @@ def run_dask(fn: TaskFn, tasks: list[dict], scheduler: str | None, workers: int 
     return dask_results(distributed, client, cluster, fn, tasks, workers)
 
 
-def dask_results(distributed, client, cluster, fn: TaskFn, tasks: list[dict], workers: int | None) -> Iterator[tuple[dict, Outcome]]:
+def dask_results(distributed: ModuleType, client: Client, cluster: LocalCluster | None, fn: TaskFn,
+                 tasks: list[dict], workers: int | None) -> Iterator[tuple[dict, Outcome]]:
     """Submit a bounded window of tasks to ``client``; yield results as they complete."""
     try:
         n_workers = len(client.scheduler_info().get("workers", {})) or workers or default_workers()

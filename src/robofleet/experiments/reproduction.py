@@ -40,9 +40,12 @@ class Budget:
 
     Attributes
     ----------
-    seeds: seeds per grid point of every sweep.
-    overrides: scenario overrides added to every sweep (e.g. a shorter ``max_steps``).
-    grid: grid entries replacing the sweep's own (e.g. fewer robot counts).
+    seeds:
+        seeds per grid point of every sweep.
+    overrides:
+        scenario overrides added to every sweep (e.g. a shorter ``max_steps``).
+    grid:
+        grid entries replacing the sweep's own (e.g. fewer robot counts).
     """
 
     seeds: int
@@ -56,17 +59,27 @@ class Reproduction:
 
     Attributes
     ----------
-    name: the name ``robofleet reproduce NAME`` takes.
-    family: the family its scenarios belong to.
-    paper: authors and year, and the figure or table reproduced.
-    description: one line.
-    sweeps: names of shipped sweep files (``sweeps/<name>.yaml``).
-    tables: ``tables(frames) -> {table name: DataFrame}``, ``frames`` mapping each sweep
+    name:
+        the name ``robofleet reproduce NAME`` takes.
+    family:
+        the family its scenarios belong to.
+    paper:
+        authors and year, and the figure or table reproduced.
+    description:
+        one line.
+    sweeps:
+        names of shipped sweep files (``sweeps/<name>.yaml``).
+    tables:
+        ``tables(frames) -> {table name: DataFrame}``, ``frames`` mapping each sweep
         name to its rows (failed runs included, with ``error`` set).
-    markdown: ``markdown(tables) -> str``, the text of ``table.md``.
-    figures: ``figures(tables, out) -> [paths]``, drawn into the directory ``out``.
-    budgets: named budgets; ``smallest`` (a smoke run) and ``default`` are required.
-    seed_shares: sweep name → share of the budget's seeds that sweep runs (costly sweeps
+    markdown:
+        ``markdown(tables) -> str``, the text of ``table.md``.
+    figures:
+        ``figures(tables, out) -> [paths]``, drawn into the directory ``out``.
+    budgets:
+        named budgets; ``smallest`` (a smoke run) and ``default`` are required.
+    seed_shares:
+        sweep name → share of the budget's seeds that sweep runs (costly sweeps
         run fewer; at least one seed each).
     """
 

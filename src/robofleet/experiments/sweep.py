@@ -147,7 +147,7 @@ def expand_overrides(combination: Mapping[str, Any]) -> dict[str, Any]:
     return {path: value for key, value in combination.items() for path in key.split("+")}
 
 
-def is_int(value) -> bool:
+def is_int(value: object) -> bool:
     return isinstance(value, (int, np.integer)) and not isinstance(value, (bool, np.bool_))
 
 
@@ -157,14 +157,22 @@ class SweepPlan:
 
     Attributes
     ----------
-    source: the sweep file (``None`` for a mapping).
-    scenario: the scenario mapping every task starts from (shipped to workers).
-    grid_keys: the grid's dotted paths, in file order (also the parameter column names).
-    combinations: one ``{path: value}`` dict per grid point, in product order.
-    seeds: the seeds every combination runs with.
-    tasks: ``combinations × seeds`` task dicts (``run_id``, ``seed``, parameters).
-    fn: the picklable task function (simulate one task, return its summary).
-    out: the result store directory.
+    source:
+        the sweep file (``None`` for a mapping).
+    scenario:
+        the scenario mapping every task starts from (shipped to workers).
+    grid_keys:
+        the grid's dotted paths, in file order (also the parameter column names).
+    combinations:
+        one ``{path: value}`` dict per grid point, in product order.
+    seeds:
+        the seeds every combination runs with.
+    tasks:
+        ``combinations × seeds`` task dicts (``run_id``, ``seed``, parameters).
+    fn:
+        the picklable task function (simulate one task, return its summary).
+    out:
+        the result store directory.
     """
 
     source: str | None

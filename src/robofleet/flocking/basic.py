@@ -33,7 +33,7 @@ pattern. Per call the cost is O(m log m) for m followers (sorting), all vectoriz
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import ClassVar
+from typing import Any, ClassVar
 
 import numpy as np
 
@@ -126,11 +126,12 @@ class BasicAlgorithm:
         """The pattern direction that Final_Positions aligns with Y: B_P → L."""
         return pattern.axis
 
-    def oriented_pattern(self, snapshot: Snapshot, pattern: Pattern, axis: np.ndarray, rng) -> np.ndarray | Decision:
+    def oriented_pattern(self, snapshot: Snapshot, pattern: Pattern, axis: np.ndarray,
+                         rng: np.random.Generator | None) -> np.ndarray | Decision:
         """Pattern points to place (the randomized variant may mirror them here)."""
         return pattern.points
 
-    def remember(self, snapshot: Snapshot):
+    def remember(self, snapshot: Snapshot) -> Any:
         """What to store for the next cycle (nothing: the algorithm is oblivious)."""
         return None
 
@@ -169,7 +170,7 @@ class BasicAlgorithm:
         return (np.linalg.norm(points, axis=1), np.linalg.norm(points - bary, axis=1), -np.arange(len(points), dtype=float))
 
     # ---- lines 15-38 ----------------------------------------------------------------
-    def choose_slot(self, view: View, rng) -> int:
+    def choose_slot(self, view: View, rng: np.random.Generator | None) -> int:
         """The case analysis of lines 15-38; returns the pattern index of the target slot."""
         if view.my_side == 0:
             return self._case_s0(view, rng)
@@ -197,18 +198,18 @@ class BasicAlgorithm:
         side = self.s0_side(view, rng)                                                 # line 35
         return self._pick(view, side, len(view.slots[side]) - len(view.order[side]) + (k - n_f0), side)
 
-    def s0_side(self, view: View, rng) -> int:
+    def s0_side(self, view: View, rng: np.random.Generator | None) -> int:
         """Line 35: the side with fewer robots; F_1 when ``|S_1| = |S_2|``."""
         return 1 if len(view.order[1]) <= len(view.order[2]) else 2
 
     def h_set(self, view: View) -> np.ndarray:
-        """Line 21-23: robots of S_1 ranked beyond |F_1| and of S_2 beyond |F_2|, sorted."""
+        """Line 21-23: robots of S_1 ranked beyond ``|F_1|`` and of S_2 beyond ``|F_2|``, sorted."""
         extra = [view.order[j][len(view.slots[j]):] for j in (1, 2)]
         members = np.concatenate(extra)
         keys = tuple(k[members] for k in view.robot_keys)
         return members[sort_descending(keys)]
 
-    def rank_in_h(self, view: View, rng) -> int:
+    def rank_in_h(self, view: View, rng: np.random.Generator | None) -> int:
         """Line 24: k' = Rank(me, H) (1-based)."""
         return int(np.flatnonzero(self.h_set(view) == 0)[0]) + 1
 

@@ -1,4 +1,4 @@
-"""The flocking family as the rest of robofleet sees it (paper 001: Gervasi & Prencipe,
+"""The flocking family as the rest of robofleet sees it (Gervasi & Prencipe 2001: Gervasi & Prencipe,
 *Flocking by a set of autonomous mobile robots*, Univ. of Pisa TR-01-24, 2001)."""
 
 from __future__ import annotations

@@ -77,7 +77,7 @@ class MemoryAlgorithm(BasicAlgorithm):
     def pattern_axis(self, pattern: Pattern) -> np.ndarray:
         return X_AXIS
 
-    def remember(self, snapshot: Snapshot):
+    def remember(self, snapshot: Snapshot) -> np.ndarray:
         """Store one position: the leader's, in the persistent frame (two reals)."""
         return self._leader_persistent(snapshot)
 
@@ -89,7 +89,8 @@ class ChiralityAlgorithm(BasicAlgorithm):
     name: ClassVar[str] = "chirality"
     frames: ClassVar[FrameAgreement] = "chirality"
 
-    def robot_keys(self, followers, leader, bary, lateral):
+    def robot_keys(self, followers: np.ndarray, leader: np.ndarray, bary: np.ndarray,
+                   lateral: np.ndarray) -> tuple[np.ndarray, ...]:
         """dist(L, ·), dist(B, ·), then the shared coordinates: side of Y (left first), along Y."""
         to_leader = leader - bary
         along = (followers - bary) @ (to_leader / np.linalg.norm(to_leader))

@@ -20,6 +20,7 @@ headings are exact at any time (:meth:`LeaderCourse.position`).
 from __future__ import annotations
 
 import warnings
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Literal, Union
 
@@ -99,7 +100,8 @@ class LeaderCourse:
     omega: np.ndarray
 
     @classmethod
-    def build(cls, start, heading: float, speed: float, durations: np.ndarray, omega: np.ndarray) -> "LeaderCourse":
+    def build(cls, start: np.ndarray | Sequence[float], heading: float, speed: float, durations: np.ndarray,
+              omega: np.ndarray) -> "LeaderCourse":
         """Integrate the arcs exactly (vectorized over segments)."""
         durations, omega = np.asarray(durations, float), np.asarray(omega, float)
         turn = omega * durations
@@ -114,12 +116,12 @@ class LeaderCourse:
         idx = np.clip(np.searchsorted(self.times, t, side="right") - 1, 0, len(self.times) - 1)
         return idx, t - self.times[idx]
 
-    def position(self, t) -> np.ndarray:
+    def position(self, t: float | np.ndarray) -> np.ndarray:
         """Leader position at time(s) ``t`` (shape ``t.shape + (2,)``)."""
         idx, dt = self._segment(t)
         return self.points[idx] + _arc(self.headings[idx], self.omega[idx], self.speed, dt)
 
-    def heading(self, t) -> np.ndarray:
+    def heading(self, t: float | np.ndarray) -> np.ndarray:
         """Leader heading ψ_L(t) in radians."""
         idx, dt = self._segment(t)
         return self.headings[idx] + self.omega[idx] * dt
@@ -150,7 +152,8 @@ def resolve_speeds(spec: LeaderSpec, follower_speeds: np.ndarray, pattern_radius
     return v, w
 
 
-def build_course(spec: LeaderSpec, *, speed: float, turn_rate: float, start, heading: float, horizon: float, rng: RngLike = None) -> LeaderCourse:
+def build_course(spec: LeaderSpec, *, speed: float, turn_rate: float, start: np.ndarray | Sequence[float], heading: float,
+                 horizon: float, rng: RngLike = None) -> LeaderCourse:
     """The leader course up to ``horizon`` time units (random turns drawn from ``rng``)."""
     if isinstance(spec, ScriptedLeader):
         durations = np.array([s.duration for s in spec.segments] + [max(horizon, 1.0)])
@@ -211,7 +214,8 @@ class ConditionReport:
                 "v_min": self.v_min, "sum_k": self.sum_k, "xi": self.xi, "condition_4_max": self.cond4, **self.holds}
 
 
-def check_conditions(v_leader: float, omega_leader: float, radius: float, speeds, tau_move_max, xi: float, *,
+def check_conditions(v_leader: float, omega_leader: float, radius: float, speeds: np.ndarray | Sequence[float],
+                     tau_move_max: float | np.ndarray | Sequence[float], xi: float, *,
                      cond4: float = float("nan"), on_violation: Literal["warn", "error", "ignore"] = "warn",
                      source: str | None = None) -> ConditionReport:
     """Compute conditions (1)-(4) of Sec. 3.2 and act on violations.

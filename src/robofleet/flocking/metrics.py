@@ -88,15 +88,16 @@ def _points(arr, name: str) -> np.ndarray:
     return a
 
 
-def d_distance(c, g) -> DDistance:
+def d_distance(c: np.ndarray, g: np.ndarray) -> DDistance:
     """𝒟(C, G) = min_π Σ_i dist(c_i, g_π(i)) (Def. 3.1), with ρ_i.
-
-    Parameters
-    ----------
-    c, g: ``(n, 2)`` configurations of equal size.
 
     Complexity O(n³) (Jonker-Volgenant via ``linear_sum_assignment``); the cost matrix
     takes O(n²) memory (8 MB for n = 1000).
+
+    Parameters
+    ----------
+    c, g:
+        ``(n, 2)`` configurations of equal size.
     """
     c, g = _points(c, "c"), _points(g, "g")
     if len(c) != len(g):
@@ -121,7 +122,7 @@ def place(points: np.ndarray, leader: np.ndarray, rotation: np.ndarray) -> np.nd
     return points @ rotation.T + leader
 
 
-def estimated_target(pattern: Pattern, leader, followers) -> np.ndarray:
+def estimated_target(pattern: Pattern, leader: np.ndarray, followers: np.ndarray) -> np.ndarray:
     """𝒯^{φ_B}: ℙ on the leader, rotated so that B_P lies on the line L–B on B's side.
 
     (Sec. 4.2.) Returns NaNs when B = L (the axis is undefined, footnote 3).
@@ -133,7 +134,7 @@ def estimated_target(pattern: Pattern, leader, followers) -> np.ndarray:
     return place(pattern.points, leader, rotation_onto(pattern.axis, to_leader))
 
 
-def real_target(pattern: Pattern, leader, heading: float) -> np.ndarray:
+def real_target(pattern: Pattern, leader: np.ndarray, heading: float) -> np.ndarray:
     """𝒯^{ψ_L}: ℙ on the leader, its x axis along the leader's heading ``ψ_L`` (Def. 3.2)."""
     c, s = np.cos(heading), np.sin(heading)
     return place(pattern.points, np.asarray(leader, dtype=float), np.array([[c, -s], [s, c]]))
@@ -144,9 +145,12 @@ def delta_series(positions: np.ndarray, headings: np.ndarray, pattern: Pattern) 
 
     Parameters
     ----------
-    positions: ``(T, 1 + m, 2)`` true positions, leader at index 0.
-    headings: ``(T,)`` leader heading ψ_L(t) (radians).
-    pattern: the pattern ℙ with ``m`` points.
+    positions:
+        ``(T, 1 + m, 2)`` true positions, leader at index 0.
+    headings:
+        ``(T,)`` leader heading ψ_L(t) (radians).
+    pattern:
+        the pattern ℙ with ``m`` points.
     """
     pos = np.asarray(positions, dtype=float)
     if pos.ndim != 3 or pos.shape[2] != 2 or pos.shape[1] != pattern.size + 1:

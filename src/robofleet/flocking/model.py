@@ -22,6 +22,7 @@ from typing import Any, Literal, Protocol
 import numpy as np
 
 from ..core.rng import RngLike, as_generator
+from .patterns import Pattern
 
 FrameAgreement = Literal["none", "chirality", "axes"]
 
@@ -30,6 +31,9 @@ FrameAgreement = Literal["none", "chirality", "axes"]
 class LocalFrames:
     """The local frames of ``n`` followers.
 
+    The local coordinates of a world point ``p`` seen from a robot at ``o`` are
+    ``M (p − o)`` with ``M = [[cos θ, sin θ], [−h sin θ, h cos θ]]`` (orthogonal).
+
     Attributes
     ----------
     angle:
@@ -37,9 +41,6 @@ class LocalFrames:
     hand:
         ``(n,)`` ``+1`` when the local y axis is the x axis turned counter-clockwise,
         ``-1`` when it is turned clockwise (opposite chirality).
-
-    The local coordinates of a world point ``p`` seen from a robot at ``o`` are
-    ``M (p − o)`` with ``M = [[cos θ, sin θ], [−h sin θ, h cos θ]]`` (orthogonal).
     """
 
     angle: np.ndarray
@@ -88,11 +89,16 @@ class Snapshot:
 
     Attributes
     ----------
-    leader: ``(2,)`` position of the leader.
-    others: ``(m − 1, 2)`` positions of the other followers, lexicographically sorted.
-    leader_heading: unit vector of the leader's heading (Sec. 6.1 only), else ``None``.
-    odometry: the robot's own position in its persistent frame (Sec. 6.3 only), else ``None``.
-    memory: the one value the robot stored at its previous cycle (Sec. 6.3 only), else ``None``.
+    leader:
+        ``(2,)`` position of the leader.
+    others:
+        ``(m − 1, 2)`` positions of the other followers, lexicographically sorted.
+    leader_heading:
+        unit vector of the leader's heading (Sec. 6.1 only), else ``None``.
+    odometry:
+        the robot's own position in its persistent frame (Sec. 6.3 only), else ``None``.
+    memory:
+        the one value the robot stored at its previous cycle (Sec. 6.3 only), else ``None``.
     """
 
     leader: np.ndarray
@@ -113,10 +119,13 @@ class Decision:
 
     Attributes
     ----------
-    path: ``(K, 2)`` waypoints from the robot's position (excluded) to the destination
+    path:
+        ``(K, 2)`` waypoints from the robot's position (excluded) to the destination
         (last row). A straight move has ``K = 1``; the hula-hoop variant returns a curve.
-    slot: index of the pattern point chosen as target, ``-1`` when waiting.
-    memory: what the robot stores for its next cycle (Sec. 6.3 variant only).
+    slot:
+        index of the pattern point chosen as target, ``-1`` when waiting.
+    memory:
+        what the robot stores for its next cycle (Sec. 6.3 variant only).
     """
 
     path: np.ndarray
@@ -145,7 +154,7 @@ class Algorithm(Protocol):
     needs_heading: bool
     needs_memory: bool
 
-    def decide(self, snapshot: Snapshot, pattern, rng: np.random.Generator | None = None) -> Decision: ...
+    def decide(self, snapshot: Snapshot, pattern: Pattern, rng: np.random.Generator | None = None) -> Decision: ...
 
 
 def look(frames: LocalFrames, i: int, leader: np.ndarray, followers: np.ndarray, *, heading: np.ndarray | None = None,
@@ -154,12 +163,18 @@ def look(frames: LocalFrames, i: int, leader: np.ndarray, followers: np.ndarray,
 
     Parameters
     ----------
-    frames: all local frames; ``i`` selects the observer.
-    leader: ``(2,)`` world position of the leader.
-    followers: ``(m, 2)`` world positions of all followers (row ``i`` is the observer).
-    heading: world unit heading of the leader, given only to Sec. 6.1/6.3 variants.
-    odometry_origin: world origin of the observer's persistent frame (Sec. 6.3 variant).
-    memory: the observer's stored value (Sec. 6.3 variant).
+    frames:
+        all local frames; ``i`` selects the observer.
+    leader:
+        ``(2,)`` world position of the leader.
+    followers:
+        ``(m, 2)`` world positions of all followers (row ``i`` is the observer).
+    heading:
+        world unit heading of the leader, given only to Sec. 6.1/6.3 variants.
+    odometry_origin:
+        world origin of the observer's persistent frame (Sec. 6.3 variant).
+    memory:
+        the observer's stored value (Sec. 6.3 variant).
     """
     me = followers[i]
     others = np.delete(followers, i, axis=0)

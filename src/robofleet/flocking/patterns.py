@@ -22,6 +22,7 @@ reconstruction with the stated number of followers and scale of the random patte
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
@@ -43,14 +44,14 @@ PatternKind = Literal["wedge", "line", "spread", "random", "points", "file"]
 class Pattern:
     """A validated pattern: follower points relative to the leader, heading along +x.
 
+    Use :func:`validate_points` (or :func:`make_pattern`) to build one from user input.
+
     Parameters
     ----------
     points:
         ``(m, 2)`` float64 follower points ``p_1 .. p_m`` (the leader is the origin).
     name:
         Label used in tables and plots.
-
-    Use :func:`validate_points` (or :func:`make_pattern`) to build one from user input.
     """
 
     points: np.ndarray
@@ -96,7 +97,7 @@ class Pattern:
 
     @property
     def n_on_axis(self) -> int:
-        """Number of points on the line through L and B_P (|F_0|)."""
+        """Number of points on the line through L and B_P (``|F_0|``)."""
         return int(np.count_nonzero(self.side == 0))
 
     def mirrored(self) -> np.ndarray:
@@ -128,7 +129,8 @@ class Pattern:
         return True, ""
 
 
-def validate_points(points, *, name: str = "pattern", field: str = "pattern.points", source: str | None = None) -> Pattern:
+def validate_points(points: np.ndarray | Sequence[Sequence[float]], *, name: str = "pattern", field: str = "pattern.points",
+                    source: str | None = None) -> Pattern:
     """Build a :class:`Pattern` from user input, raising :class:`ScenarioError` on bad input.
 
     Checks: a finite ``(m, 2)`` array with ``m ≥ 1``; no point on the leader; no two
@@ -175,7 +177,8 @@ def spread() -> Pattern:
     return Pattern(np.concatenate([half, half * [1.0, -1.0]]), "spread")
 
 
-def random_lb_symmetric(n_points: int | None = None, rng: RngLike = None, low=(-150.0, -50.0), high=(-50.0, 50.0)) -> Pattern:
+def random_lb_symmetric(n_points: int | None = None, rng: RngLike = None, low: Sequence[float] = (-150.0, -50.0),
+                        high: Sequence[float] = (-50.0, 50.0)) -> Pattern:
     """A random lb-symmetric pattern as in Sec. 4.2.
 
     ``n_points`` (2..8 in the paper; drawn uniformly from 2..8 when ``None``) points in
@@ -219,7 +222,8 @@ def from_file(path: str | Path, *, field: str = "pattern.path", source: str | No
 BUILTIN = {"wedge": wedge, "line": line, "spread": spread}
 
 
-def make_pattern(kind: str, *, points=None, n_points: int | None = None, path=None, rng: RngLike = None, source: str | None = None) -> Pattern:
+def make_pattern(kind: str, *, points: np.ndarray | Sequence[Sequence[float]] | None = None, n_points: int | None = None,
+                 path: str | Path | None = None, rng: RngLike = None, source: str | None = None) -> Pattern:
     """Pattern factory used by scenario files (``pattern.kind``)."""
     if kind in BUILTIN:
         return BUILTIN[kind]()

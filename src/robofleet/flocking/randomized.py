@@ -37,7 +37,7 @@ def ranking(c: np.ndarray, d: np.ndarray, leader: np.ndarray, bary: np.ndarray, 
     Both sets are sorted with Algorithm 1's ``Sort(·, L, B)`` (decreasing distance from L,
     then from B) and compared element by element on (dist(·, L), dist(·, B)). Distances
     closer than ``tolerance`` count as equal. Sets of different sizes: the larger ranks
-    higher (completion for |C| ≠ |D|).
+    higher (completion for ``|C| ≠ |D|``).
     """
     if len(c) != len(d):
         return 1 if len(c) > len(d) else -1
@@ -64,8 +64,10 @@ class RandomizedAlgorithm(BasicAlgorithm):
 
     Parameters
     ----------
-    tie_tolerance: relative tolerance (× max(1, distance)) for "ranked equal".
-    random_move: radius of the random tie-breaking move (semi-spaces ranked equal).
+    tie_tolerance:
+        relative tolerance (× max(1, distance)) for "ranked equal".
+    random_move:
+        radius of the random tie-breaking move (semi-spaces ranked equal).
     """
 
     tie_tolerance: float = 1e-9
@@ -73,14 +75,14 @@ class RandomizedAlgorithm(BasicAlgorithm):
 
     name: ClassVar[str] = "randomized"
 
-    def s0_side(self, view: View, rng) -> int:
-        """Case a: a fair coin when |S_1| = |S_2|, else the side with fewer robots."""
+    def s0_side(self, view: View, rng: np.random.Generator) -> int:
+        """Case a: a fair coin when ``|S_1| = |S_2|``, else the side with fewer robots."""
         n1, n2 = len(view.order[1]), len(view.order[2])
         if n1 == n2:
             return int(rng.integers(1, 3))
         return 1 if n1 < n2 else 2
 
-    def rank_in_h(self, view: View, rng) -> int:
+    def rank_in_h(self, view: View, rng: np.random.Generator) -> int:
         """Case b: a uniformly random rank among the followers of H tied with me."""
         h = self.h_set(view)
         dl = view.robot_keys[0][h]
@@ -90,7 +92,8 @@ class RandomizedAlgorithm(BasicAlgorithm):
         tied = np.flatnonzero((np.abs(dl - dl[me]) <= tol) & (np.abs(db - db[me]) <= tol))
         return int(rng.choice(tied)) + 1 if len(tied) > 1 else me + 1
 
-    def oriented_pattern(self, snapshot: Snapshot, pattern: Pattern, axis: np.ndarray, rng) -> np.ndarray | Decision:
+    def oriented_pattern(self, snapshot: Snapshot, pattern: Pattern, axis: np.ndarray,
+                         rng: np.random.Generator) -> np.ndarray | Decision:
         """Steps 1-3 of Sec. 6.4 for non-lb-symmetric patterns; lb-symmetric ones are used as is."""
         if pattern.is_lb_symmetric:
             return pattern.points

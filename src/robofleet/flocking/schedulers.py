@@ -13,8 +13,8 @@ One event-driven engine runs all three; they differ only in *who looks when*:
   their paths at the Look time). A heap of next-Look times orders the events.
 
 Moves (A2, non-rigid): in a cycle of length τ a follower of speed v_f travels along its
-path at speed v_f for ℓ = min(|path|, max(δ_f, η v_f τ)), η ~ U(``rigidity``, 1), then
-stands still until the cycle ends; so it always covers at least min(δ_f, |path|), reaches
+path at speed v_f for ℓ = min(``|path|``, max(δ_f, η v_f τ)), η ~ U(``rigidity``, 1), then
+stands still until the cycle ends; so it always covers at least min(δ_f, ``|path|``), reaches
 destinations closer than δ_f, and the distance covered is unpredictable when
 ``rigidity < 1``. ``rigidity = 1`` gives rigid moves (destination reached whenever
 v_f τ allows).
@@ -195,9 +195,14 @@ def sample_times(duration: float, sample_dt: float) -> np.ndarray:
 class LookComputeMove:
     """The Look-Compute-Move engine of Sec. 2: who looks when, each Compute, each Move.
 
+    The loop calls :meth:`advance` with each sampling instant in turn, reads
+    :meth:`followers` there, and calls :meth:`finish` after the last one.
+
     Parameters
     ----------
-    algorithm, pattern, frames:
+    algorithm : ~robofleet.flocking.model.Algorithm
+        The Compute step, the pattern ℙ and the followers' local frames.
+    pattern, frames:
         The Compute step, the pattern ℙ and the followers' local frames.
     starts, speeds:
         ``(m, 2)`` initial world positions and ``(m,)`` speeds v_f > 0 of the followers.
@@ -210,9 +215,6 @@ class LookComputeMove:
     scheduler_rng, algorithm_rng:
         Independent seeded streams (activations, cycle and move lengths / the algorithm's
         own random choices).
-
-    The loop calls :meth:`advance` with each sampling instant in turn, reads
-    :meth:`followers` there, and calls :meth:`finish` after the last one.
     """
 
     def __init__(self, algorithm: Algorithm, pattern: Pattern, frames: LocalFrames, starts, speeds, course: LeaderCourse,
@@ -305,14 +307,17 @@ def run(algorithm: Algorithm, pattern: Pattern, frames: LocalFrames, starts: np.
     The same engine and sampling as a scenario run, without a scenario: for hand-built
     configurations.
 
+    Returns the sampled positions ``(T, 1 + m, 2)`` (leader at index 0) and the cycle log.
+
     Parameters
     ----------
-    starts: ``(m, 2)`` initial world positions of the followers; ``speeds``: ``(m,)`` v_f > 0.
-    duration: simulated time; samples are taken every ``sample_dt``.
-    scheduler_rng / algorithm_rng: independent seeded streams (activation and move
-        lengths / the algorithm's own random choices).
-
-    Returns the sampled positions ``(T, 1 + m, 2)`` (leader at index 0) and the cycle log.
+    starts:
+        ``(m, 2)`` initial world positions of the followers; ``speeds``: ``(m,)`` v_f > 0.
+    duration:
+        simulated time; samples are taken every ``sample_dt``.
+    scheduler_rng, algorithm_rng:
+        independent seeded streams (activation and move lengths / the algorithm's own
+        random choices).
     """
     engine = LookComputeMove(algorithm, pattern, frames, starts, speeds, course, spec, duration=duration,
                              scheduler_rng=scheduler_rng, algorithm_rng=algorithm_rng)

@@ -18,7 +18,7 @@ followers at 1..m; ``time``, ``delta_e``, ``delta_r``, ``leader_heading`` are ``
 ``estimated_target`` ``(T, m, 2)`` holds the slots of the estimated target 𝒯^{φ_B(t)}
 (Sec. 4.2); a non-lb-symmetric pattern adds ``delta_e_up_to_reflection`` ``(T,)``.
 Events are the cycle log (``kind: "cycle"``, one per Look-Compute-Move cycle). The
-per-run results are those of :data:`.metrics.RESULTS`.
+per-run results are those of :data:`metrics.RESULTS <robofleet.flocking.metrics.RESULTS>`.
 """
 
 from __future__ import annotations
@@ -44,13 +44,20 @@ class World:
 
     Attributes
     ----------
-    pattern: the pattern ℙ (drawn for ``kind: random``).
-    speeds, starts, frames: the followers' speeds v_f, start positions and local frames.
-    course: the leader's course; ``slot_speed`` = v_L + ω_L R_P.
-    xi: ξ of Def. 3.3.
-    times: the sampling instants.
-    engine: the Look-Compute-Move engine, at time 0.
-    mirror: the mirror image of ℙ for a non-lb-symmetric pattern, else ``None``.
+    pattern:
+        the pattern ℙ (drawn for ``kind: random``).
+    speeds, starts, frames:
+        the followers' speeds v_f, start positions and local frames.
+    course:
+        the leader's course; ``slot_speed`` = v_L + ω_L R_P.
+    xi:
+        ξ of Def. 3.3.
+    times:
+        the sampling instants.
+    engine:
+        the Look-Compute-Move engine, at time 0.
+    mirror:
+        the mirror image of ℙ for a non-lb-symmetric pattern, else ``None``.
     """
 
     pattern: Pattern
@@ -120,6 +127,11 @@ def declare_arrays(rec: Recorder, initial: dict[str, np.ndarray]) -> None:
 def simulate(spec: Spec, seed: int | None = None, progress: bool = False) -> Trace:
     """Run a flocking scenario and return its :class:`~robofleet.core.trace.Trace`.
 
+    Results (``trace.results``, :data:`metrics.RESULTS <robofleet.flocking.metrics.RESULTS>`):
+    Δ_e and Δ_r at the end and over the last 10 % of the run, the convergence times to ξ
+    (Def. 3.4), ``success`` (the estimated formation formed up to ξ and kept), slot changes,
+    cycle counts, and the conditions (1)-(4) of Sec. 3.2 measured on the cycle log.
+
     Parameters
     ----------
     spec:
@@ -128,11 +140,6 @@ def simulate(spec: Spec, seed: int | None = None, progress: bool = False) -> Tra
         The run's seed (``None``: a fresh one, recorded as ``trace.seed``).
     progress:
         Show a progress bar over the sampling steps.
-
-    Results (``trace.results``, :data:`.metrics.RESULTS`): Δ_e and Δ_r at the end and over
-    the last 10 % of the run, the convergence times to ξ (Def. 3.4), ``success`` (the
-    estimated formation formed up to ξ and kept), slot changes, cycle counts, and the
-    conditions (1)-(4) of Sec. 3.2 measured on the cycle log.
     """
     seed = resolve_seed(seed)
     world = build_world(spec, seed)
@@ -158,7 +165,8 @@ def simulate(spec: Spec, seed: int | None = None, progress: bool = False) -> Tra
 
 
 def run_results(spec: Spec, world: World, rec: Recorder) -> dict:
-    """``trace.results``: the spec's names, then :func:`.metrics.run_results` of the recorded run."""
+    """``trace.results``: the spec's names, then
+    :func:`metrics.run_results <robofleet.flocking.metrics.run_results>` of the recorded run."""
     log = world.engine.log()
     conditions = metrics.measured_conditions(log, world.course, world.pattern.radius, world.speeds, world.xi, world.slot_speed)
     a = rec.arrays()

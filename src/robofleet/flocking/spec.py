@@ -33,6 +33,7 @@ from pydantic import Field, field_validator, model_validator
 
 from ..core.config import SpecModel
 from ..core.errors import ScenarioError
+from ..core.rng import RngLike
 from .basic import BasicAlgorithm
 from .hula_hoop import HulaHoopAlgorithm
 from .knowledge import ChiralityAlgorithm, MemoryAlgorithm, ObservableHeadingAlgorithm, SharedAxesAlgorithm
@@ -74,7 +75,7 @@ class PatternSpec(SpecModel):
             validate_points(self.points, field="points")
         return self
 
-    def build(self, rng=None, source: str | None = None) -> Pattern:
+    def build(self, rng: RngLike = None, source: str | None = None) -> Pattern:
         """The pattern ℙ (a ``random`` one drawn from ``rng``; a ``file`` read beside ``source``)."""
         return make_pattern(self.kind, points=self.points, n_points=self.n_points, path=self.path, rng=rng, source=source)
 
@@ -137,7 +138,7 @@ class AlgorithmSpec(SpecModel):
     margin: float = Field(default=1e-3, ge=0)
     random_move: float = Field(default=1.0, gt=0)
 
-    def build(self):
+    def build(self) -> BasicAlgorithm:
         """The algorithm object (frozen dataclass) with this spec's parameters."""
         cls = ALGORITHMS[self.kind]
         kwargs = {"axis_tolerance": self.axis_tolerance}
@@ -189,7 +190,7 @@ class Spec(SpecModel):
 
 
 def check_followers(spec: Spec, pattern: Pattern, source: str | None = None) -> int:
-    """Number of followers; exactly one per slot (Sec. 4: |ℙ| − 1 followers)."""
+    """Number of followers; exactly one per slot (Sec. 4: ``|ℙ| − 1`` followers)."""
     f = spec.followers
     count = f.count if f.count is not None else len(f.speeds or f.starts or []) or pattern.size
     if count < pattern.size:

@@ -34,11 +34,12 @@ class StripeAlgorithm(BasicAlgorithm):
 
     name: ClassVar[str] = "stripe"
 
-    def robot_keys(self, followers, leader, bary, lateral):
+    def robot_keys(self, followers: np.ndarray, leader: np.ndarray, bary: np.ndarray,
+                   lateral: np.ndarray) -> tuple[np.ndarray, ...]:
         """dist(Y, ·), then dist(L, ·), dist(B, ·), then the basic last-resort tie-break."""
         return (np.abs(lateral), *super().robot_keys(followers, leader, bary, lateral))
 
-    def slot_keys(self, points, bary, lateral):
+    def slot_keys(self, points: np.ndarray, bary: np.ndarray, lateral: np.ndarray) -> tuple[np.ndarray, ...]:
         """dist(Y, ·), then dist(L, ·), dist(B_F, ·), pattern index."""
         return (np.abs(lateral), *super().slot_keys(points, bary, lateral))
 
@@ -67,9 +68,9 @@ def stable_band(key: np.ndarray, order: np.ndarray, margin: float) -> tuple[floa
 
 
 def first_exit(f0: float, f1: float, lo: float, hi: float) -> float:
-    """Largest s ∈ [0, 1] such that lo ≤ |f0 + u (f1 − f0)| ≤ hi for all u ∈ [0, s].
+    """Largest s ∈ [0, 1] such that ``lo ≤ |f0 + u (f1 − f0)| ≤ hi`` for all u ∈ [0, s].
 
-    The start is assumed inside the band. Exact: the only places where |f| can leave
+    The start is assumed inside the band. Exact: the only places where ``|f|`` can leave
     the band are the crossings f = ±lo, ±hi, checked in order.
     """
     df = f1 - f0

@@ -4,7 +4,10 @@
 gives one's file; :func:`load_scenario` and :func:`simulate` accept those names too.
 """
 
+from __future__ import annotations
+
 import builtins
+from pathlib import Path
 
 from .catalogue import Entry, names, resolve
 from .catalogue import list as _catalogue_list
@@ -17,7 +20,7 @@ def list(kind: str = "scenarios") -> builtins.list[Entry]:  # noqa: A001 - publi
     return _catalogue_list(kind)
 
 
-def path(name: str, kind: str = "scenarios"):
+def path(name: str, kind: str = "scenarios") -> Path:
     """The file of the shipped scenario (or sweep) ``name``, e.g. ``"avoidance/circle_swap"``."""
     return _catalogue_path(name, kind)
 

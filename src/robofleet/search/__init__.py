@@ -1,4 +1,4 @@
-"""Decentralized collision-free search of an unknown area on a grid (paper 002, X. Yang,
+"""Decentralized collision-free search of an unknown area on a grid (Yang 2017, X. Yang,
 "Grid based 2D navigation by a decentralized robot system with collision avoidance",
 CCC 2017).
 

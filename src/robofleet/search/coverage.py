@@ -21,9 +21,12 @@ class CoverageProbe:
 
     Parameters
     ----------
-    grid: the grid (its workspace defines ``A`` and ``O``).
-    r_st: target sensing range.
-    spacing: sample spacing; the share is an area share up to O(spacing) at the border.
+    grid:
+        the grid (its workspace defines ``A`` and ``O``).
+    r_st:
+        target sensing range.
+    spacing:
+        sample spacing; the share is an area share up to O(spacing) at the border.
     """
 
     def __init__(self, grid: Grid, r_st: float, spacing: float | None = None):

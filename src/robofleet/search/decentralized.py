@@ -58,7 +58,8 @@ def choice_rounds(rank: np.ndarray, links: np.ndarray, active: np.ndarray) -> np
     return np.where(active, level, -1)
 
 
-def neighbour_options(ctx: StepContext, robots: np.ndarray, choice: np.ndarray, decided: np.ndarray):
+def neighbour_options(ctx: StepContext, robots: np.ndarray, choice: np.ndarray,
+                      decided: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Options ``N_s,i(k)`` of ``robots`` from each one's own knowledge.
 
     Returns ``(candidates (m, k) vertex ids, options (m, k) bool, unvisited (m, k) bool)``.

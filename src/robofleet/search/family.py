@@ -1,4 +1,4 @@
-"""The search family (paper 002) as the rest of robofleet sees it: :data:`FAMILY`."""
+"""The search family (Yang 2017) as the rest of robofleet sees it: :data:`FAMILY`."""
 
 from ..core.family import Family
 from .guarantees import check

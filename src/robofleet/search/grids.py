@@ -84,7 +84,8 @@ class Grid:
 
     @cached_property
     def candidate_words(self) -> tuple[np.ndarray, np.ndarray]:
-        """Word index and bit mask of every candidate in a vertex bit set (see :mod:`.knowledge`)."""
+        """Word index and bit mask of every candidate in a vertex bit set
+        (see :mod:`~robofleet.search.knowledge`)."""
         cand = self.candidates
         return cand >> 6, np.uint64(1) << (cand & 63).astype(np.uint64)
 
@@ -165,10 +166,14 @@ def build_grid(workspace: Workspace, kind: GridKind | str, a: float, r_safe: flo
 
     Parameters
     ----------
-    workspace: the search area ``A`` with its obstacles ``O_1 … O_l`` (Assumption 2.1).
-    kind: ``triangular``, ``square`` or ``hexagonal``.
-    a: edge length, > 0.
-    r_safe: safety radius, ≥ 0.
+    workspace:
+        the search area ``A`` with its obstacles ``O_1 … O_l`` (Assumption 2.1).
+    kind:
+        ``triangular``, ``square`` or ``hexagonal``.
+    a:
+        edge length, > 0.
+    r_safe:
+        safety radius, ≥ 0.
 
     Raises
     ------

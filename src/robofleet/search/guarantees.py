@@ -1,4 +1,4 @@
-"""The paper's checkable conditions for one search scenario (paper 002), and what follows
+"""The paper's checkable conditions for one search scenario (Yang 2017), and what follows
 from them: :func:`check`, what ``robofleet check`` prints.
 
 The conditions on ranges and on the area (``r_safe > r_rob``, Assumptions 2.4, 2.5,

@@ -4,9 +4,9 @@ adapted to the grid.
 The original is continuous: a robot draws a step length from a Lévy distribution
 (Mantegna's algorithm, exponent β ≈ 1.5) and a turning angle from a normal distribution,
 and the repulsive force of nearby robots, borders and obstacles bends its path. Robots do
-not communicate, so they keep no shared map (Section 1 of paper 002).
+not communicate, so they keep no shared map (Section 1 of Yang 2017).
 
-Grid adaptation (a documented choice; paper 002 compares the methods on one area and one
+Grid adaptation (a documented choice; Yang 2017 compares the methods on one area and one
 sensing model):
 
 * a *flight* has a heading ``θ`` and a length of ``L`` edges, ``L = ⌈|s|⌉`` with

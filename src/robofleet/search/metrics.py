@@ -1,8 +1,8 @@
-"""Per-run results of a search (paper 002), written into ``trace.results``.
+"""Per-run results of a search (Yang 2017), written into ``trace.results``.
 
 Every value is computed from the observer's records (true positions, true visits, the
 true targets), never from what the robots believe. :data:`RESULTS` documents each key;
-it is the family's ``results`` table (:mod:`.family`), so every sweep row carries them.
+it is the family's ``results`` table (:mod:`~robofleet.search.family`), so every sweep row carries them.
 
 ``success`` is the paper's goal met, and only then: the search ended by its stop rule
 with every target found (situation 1, rule (3)), or with every accessible vertex
@@ -44,14 +44,22 @@ class RunRecord:
 
     Attributes
     ----------
-    situation: 1 (number of targets known) or 2.
-    search_time: simulated seconds.
-    completed: whether a stop rule fired.
-    steps: steps taken (moves).
-    found: ``(T,)`` bool, targets known by some robot of the run.
-    visited: ``(V,)`` bool, vertices a robot stood on.
-    reachable: ``(V,)`` bool, accessible vertices reachable from the starts.
-    collisions, obstacle_collisions, rounds, failed_robots: counts over the run.
+    situation:
+        1 (number of targets known) or 2.
+    search_time:
+        simulated seconds.
+    completed:
+        whether a stop rule fired.
+    steps:
+        steps taken (moves).
+    found:
+        ``(T,)`` bool, targets known by some robot of the run.
+    visited:
+        ``(V,)`` bool, vertices a robot stood on.
+    reachable:
+        ``(V,)`` bool, accessible vertices reachable from the starts.
+    collisions, obstacle_collisions, rounds, failed_robots:
+        counts over the run.
     """
 
     situation: int

@@ -1,4 +1,4 @@
-"""RU: random choices with unvisited vertices first (Baranzadeh 2013, ref. [7] of paper 002).
+"""RU: random choices with unvisited vertices first (Baranzadeh 2013, ref. [7] of Yang 2017).
 
 Section 5: "random choices with unvisited vertices first (RU) in [7]. RU did not consider
 collisions between robots. So, an additional move time is added for each collision."

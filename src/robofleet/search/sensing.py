@@ -29,15 +29,20 @@ class SensingTables:
 
     Attributes
     ----------
-    edge_sensed_ok: ``(V, k)`` bool — what a robot on ``v`` believes about its edges: free
+    edge_sensed_ok:
+        ``(V, k)`` bool — what a robot on ``v`` believes about its edges: free
         unless a blockage was sensed within ``r_so`` (missing lattice neighbours are never
         options).
-    target_visible: ``(V, T)`` bool — target ``t`` is within ``r_st`` of vertex ``v``.
-    self_bits, free_bits, inaccessible_bits: ``(V, W)`` uint64 bit rows (see
-        :mod:`.knowledge`) of the vertex itself, of the neighbours a robot on it senses
-        reachable, and of the neighbours it senses inaccessible — what step 2 adds to its map.
-    exact: the sensed edge states equal the true ones everywhere (Assumption 2.4 in effect).
-    wall_push: ``(V, 2)`` repulsion of the sensed blocked edges, ``Σ −e_k / a`` (used by LFP).
+    target_visible:
+        ``(V, T)`` bool — target ``t`` is within ``r_st`` of vertex ``v``.
+    self_bits, free_bits, inaccessible_bits:
+        ``(V, W)`` uint64 bit rows (see :mod:`~robofleet.search.knowledge`) of the vertex
+        itself, of the neighbours a robot on it senses reachable, and of the neighbours it
+        senses inaccessible — what step 2 adds to its map.
+    exact:
+        the sensed edge states equal the true ones everywhere (Assumption 2.4 in effect).
+    wall_push:
+        ``(V, 2)`` repulsion of the sensed blocked edges, ``Σ −e_k / a`` (used by LFP).
     """
 
     edge_sensed_ok: np.ndarray

@@ -36,6 +36,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from functools import lru_cache
+from typing import Any
 
 import numpy as np
 
@@ -89,15 +90,16 @@ class SearchProblem:
 
 @dataclass
 class SearchOutcome:
-    """Results of one run (:func:`.metrics.run_results`), the vertices a robot stood on
-    ``(V,)`` and the steps (moves) taken."""
+    """Results of one run (:func:`metrics.run_results <robofleet.search.metrics.run_results>`),
+    the vertices a robot stood on ``(V,)`` and the steps (moves) taken."""
 
     results: dict
     visited: np.ndarray
     steps: int
 
 
-def make_policy(problem: SearchProblem, algorithm: Algorithm, n_total: int):
+def make_policy(problem: SearchProblem, algorithm: Algorithm,
+                n_total: int) -> SequentialPolicy | RandomUnvisitedPolicy | LevyFlightPolicy:
     """The choice policy of ``algorithm`` for ``n_total`` robots (all runs of a batch)."""
     if algorithm is Algorithm.PROPOSED:
         return SequentialPolicy(repulsion=True)
@@ -125,6 +127,13 @@ class SearchBatch:
     ``recorder`` (single runs only) receives the positions, vertices and clock of every
     step and the events; without one the batch still steps through a bare
     :class:`~robofleet.core.recorder.Recorder` (the loop and its early stop).
+
+    Parameters
+    ----------
+    problems : list[~robofleet.search.simulation.SearchProblem]
+    algorithm : ~robofleet.search.spec.Algorithm
+    seeds : list[int]
+    recorder : ~robofleet.core.recorder.Recorder | None
     """
 
     def __init__(self, problems: list[SearchProblem], algorithm: Algorithm, seeds: list[int], recorder: Recorder | None = None):
@@ -169,7 +178,7 @@ class SearchBatch:
         self.active = self.alive.copy()
         self.links = self.sensed = self.no_links
 
-    def event(self, step: int, kind: str, **info) -> None:
+    def event(self, step: int, kind: str, **info: Any) -> None:
         """Record an event (single recorded runs), stamped with the run's clock."""
         if self.record:
             self.rec.event(step, kind, time=float(self.time[0]), **info)
@@ -345,7 +354,8 @@ class SearchBatch:
         self.alive &= ~failing
 
     def outcome(self, r: int) -> SearchOutcome:
-        """Run ``r``'s observer record turned into its results (:func:`.metrics.run_results`)."""
+        """Run ``r``'s observer record turned into its results
+        (:func:`metrics.run_results <robofleet.search.metrics.run_results>`)."""
         p = self.p
         mine = slice(r * self.n, (r + 1) * self.n)
         steps = int(self.steps[r])
@@ -461,7 +471,7 @@ def simulate(spec: Spec, seed: int | None = None, progress: bool = False) -> Tra
     Parameters
     ----------
     spec:
-        A validated search scenario (:class:`.spec.Spec`).
+        A validated search scenario (:class:`spec.Spec <robofleet.search.spec.Spec>`).
     seed:
         ``None`` draws one (:func:`robofleet.core.rng.resolve_seed`); the start vertices,
         random failures and every robot's choices derive from it, and it is recorded as
@@ -475,8 +485,8 @@ def simulate(spec: Spec, seed: int | None = None, progress: bool = False) -> Tra
         Arrays ``positions (n_steps + 1, n_robots, 2)``, ``vertex`` and ``time``
         ``(n_steps + 1, n_robots, 1)``, ``step_seconds``; events ``target_found``,
         ``failure``, ``failure_detected``, ``collision``, ``obstacle_collision``, ``stop``
-        (each with the run's clock ``time``); results of :data:`.metrics.RESULTS` and
-        ``success``.
+        (each with the run's clock ``time``); results of
+        :data:`metrics.RESULTS <robofleet.search.metrics.RESULTS>` and ``success``.
     """
     seed = resolve_seed(seed)
     problem = build_problem(spec, seed)

@@ -155,7 +155,7 @@ class LevySpec(SpecModel):
 
 
 class Spec(SpecModel):
-    """A search scenario (paper 002)."""
+    """A search scenario (Yang 2017)."""
 
     family: Literal["search"] = "search"
     name: str = ""

@@ -36,11 +36,11 @@ class MotionTiming(SpecModel):
     decision_seconds: float = Field(0.1, ge=0, description="time of one round of sequential choices (step 5)")
     collision_penalty_moves: float = Field(1.0, ge=0, description="extra move times per collision (RU, LFP)")
 
-    def translation_time(self, distance) -> np.ndarray:
+    def translation_time(self, distance: float | np.ndarray) -> np.ndarray:
         """Trapezoidal-profile time to travel ``distance``."""
         return trapezoid_time(distance, self.v_max, self.accel)
 
-    def rotation_time(self, angle) -> np.ndarray:
+    def rotation_time(self, angle: float | np.ndarray) -> np.ndarray:
         """Time to turn by ``|angle|`` radians (fixed per move, or trapezoidal)."""
         angle = np.abs(np.asarray(angle, dtype=float))
         if self.rotation_mode == "fixed":
@@ -52,7 +52,7 @@ class MotionTiming(SpecModel):
         return float(self.rotation_time(np.pi) + self.translation_time(a))
 
 
-def trapezoid_time(distance, v_max: float, accel: float) -> np.ndarray:
+def trapezoid_time(distance: float | np.ndarray, v_max: float, accel: float) -> np.ndarray:
     """Duration of a rest-to-rest trapezoidal velocity profile.
 
     ``d ≥ v²/acc``: accelerate, cruise, decelerate: ``t = d/v + v/acc``. Shorter moves use a

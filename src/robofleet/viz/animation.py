@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from pathlib import Path
 from typing import Callable
 
@@ -23,7 +24,7 @@ def save_figure(fig: "plt.Figure", path: str | Path, dpi: int = 120, tight: bool
     return path
 
 
-def save_gif(fig: "plt.Figure", update: Callable[[int], object], frames, path: str | Path, fps: int = 10) -> Path:
+def save_gif(fig: "plt.Figure", update: Callable[[int], object], frames: Iterable[int], path: str | Path, fps: int = 10) -> Path:
     """Render ``update(frame)`` for every item of ``frames`` into a GIF at ``path``.
 
     ``update`` redraws the figure for one frame (it may return artists; blitting is off).

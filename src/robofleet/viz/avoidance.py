@@ -1,4 +1,4 @@
-"""Figures and animations of the avoidance family (paper 003, B-UAVC; Zhu, Brito &
+"""Figures and animations of the avoidance family (Zhu et al. 2022, B-UAVC; Zhu, Brito &
 Alonso-Mora 2022), and the figures of its reproductions.
 
 Reads traces (arrays, metadata, workspace) and result tables only. Every kind of
@@ -14,7 +14,9 @@ avoidance trace is drawn by the same two functions, from what the trace recorded
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import matplotlib
 
@@ -25,6 +27,9 @@ from matplotlib.patches import Circle, Ellipse, Polygon as PolygonPatch  # noqa:
 
 from ..core.trace import Trace  # noqa: E402
 from .animation import frame_indices, save_figure, save_gif  # noqa: E402
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 METHOD_STYLE = {"buavc": ("B-UAVC", "C0", "o"), "bvc": ("BVC", "C1", "s"), "bvc_inflated": ("BVC inflated", "C2", "^"),
                 "orca": ("ORCA", "C3", "D")}
@@ -61,7 +66,7 @@ def height_range(trace: Trace) -> tuple[float, float]:
     return float(z.min()), float(max(z.max(), z.min() + 1e-9))
 
 
-def box_footprint(center, size, yaw: float) -> np.ndarray:
+def box_footprint(center: Sequence[float], size: Sequence[float], yaw: float) -> np.ndarray:
     """Corners ``(4, 2)`` of a box's footprint: its (x, y) rectangle rotated by ``yaw``."""
     half = 0.5 * np.asarray(size, float)[:2]
     corners = np.array([[-1, -1], [1, -1], [1, 1], [-1, 1]]) * half
@@ -69,7 +74,7 @@ def box_footprint(center, size, yaw: float) -> np.ndarray:
     return corners @ np.array([[c, -s], [s, c]]).T + np.asarray(center, float)[:2]
 
 
-def draw_workspace(ax, trace: Trace) -> None:
+def draw_workspace(ax: plt.Axes, trace: Trace) -> None:
     """Bounds and obstacles (2-D polygons, or 3-D box footprints), limits and aspect."""
     lo, hi = view_extent(trace)
     if trace.workspace is not None and not is_three_d(trace):
@@ -168,7 +173,7 @@ def uncertainty_ellipse(cov: np.ndarray, k: float) -> tuple[float, float, float]
     return 2 * k * float(np.sqrt(values[1])), 2 * k * float(np.sqrt(values[0])), angle
 
 
-def draw_heading(ax, position: np.ndarray, heading: float, radius: float) -> None:
+def draw_heading(ax: plt.Axes, position: np.ndarray, heading: float, radius: float) -> None:
     """An arrow of length 1.8 r along ``heading`` from the robot's centre."""
     ax.arrow(position[0], position[1], 1.8 * radius * np.cos(heading), 1.8 * radius * np.sin(heading),
              head_width=0.4 * radius, color="k", lw=0.8, length_includes_head=True)
@@ -218,7 +223,7 @@ def animate_trace(trace: Trace, path: str | Path, fps: int = 10, max_frames: int
 
 
 # -- reproduction figures -----------------------------------------------------------------
-def plot_buavc_comparison(noise, delta, path: str | Path) -> Path:
+def plot_buavc_comparison(noise: pd.DataFrame, delta: pd.DataFrame, path: str | Path) -> Path:
     """Four panels of ``robofleet reproduce buavc``: runs with a collision, success rate and
     travel time against σ per method, and B-UAVC's pooled per-pair-per-step collision
     rate (with its 95 % upper bound) against δ and the bound y = δ of Eq. (12).
@@ -247,7 +252,7 @@ def plot_buavc_comparison(noise, delta, path: str | Path) -> Path:
     return save_figure(fig, path, tight=True)
 
 
-def plot_models_noise(noise, path: str | Path) -> Path:
+def plot_models_noise(noise: pd.DataFrame, path: str | Path) -> Path:
     """``robofleet reproduce buavc-models``: per robot model (columns), the share of runs
     with a collision (top) and the success rate (bottom) against σ, one line per method.
 
@@ -272,7 +277,7 @@ def plot_models_noise(noise, path: str | Path) -> Path:
     return save_figure(fig, path, tight=True)
 
 
-def plot_models_delta(delta, path: str | Path, floor: float = 1e-7) -> Path:
+def plot_models_delta(delta: pd.DataFrame, path: str | Path, floor: float = 1e-7) -> Path:
     """``robofleet reproduce buavc-models``: B-UAVC's mean per-step pair collision rate
     against δ per model, with the bound y = δ; rates of 0 are drawn at ``floor``.
 

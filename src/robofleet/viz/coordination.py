@@ -1,4 +1,4 @@
-"""Plots and animations of the coordination family (paper 000): Fig. 6 panels, the map with
+"""Plots and animations of the coordination family (the label-flipping deadlock paper (2021)): Fig. 6 panels, the map with
 planned trajectories and a run's final state (Fig. 1), and an animation of a run (waiting
 robots highlighted).
 
@@ -9,6 +9,7 @@ algorithm. ``plot_trace`` and ``animate_trace`` take any coordination trace.
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import matplotlib
 
@@ -20,6 +21,9 @@ from matplotlib.patches import Circle, Polygon as PolygonPatch  # noqa: E402
 from ..core.trace import Trace  # noqa: E402
 from ..core.workspace import Workspace  # noqa: E402
 from .animation import frame_indices, save_figure, save_gif  # noqa: E402
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 PANELS = (
     ("mean_travel_time", "(a) average travel time [s]"),
@@ -34,7 +38,7 @@ STYLES = {
 }
 
 
-def plot_fig6(summary, path: str | Path) -> Path:
+def plot_fig6(summary: pd.DataFrame, path: str | Path) -> Path:
     """Four panels of Fig. 6 from the per-(robot count, variant) summary table.
 
     ``summary`` (a pandas DataFrame) has columns ``n_robots``, ``variant`` and the panels' columns
@@ -56,7 +60,7 @@ def plot_fig6(summary, path: str | Path) -> Path:
     return save_figure(fig, path, dpi=110)
 
 
-def draw_workspace(ax, workspace: Workspace) -> None:
+def draw_workspace(ax: plt.Axes, workspace: Workspace) -> None:
     """Bounds, obstacles and regions (disturbance regions in red, labelled with ``p``)."""
     ax.add_patch(PolygonPatch(workspace.bounds, closed=True, facecolor="white", edgecolor="black", lw=1.2))
     for obstacle in workspace.obstacles:

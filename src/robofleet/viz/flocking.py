@@ -1,4 +1,4 @@
-"""Plots and animations of the flocking family (paper 001, Figs. 9-11).
+"""Plots and animations of the flocking family (Gervasi & Prencipe 2001, Figs. 9-11).
 
 Reads traces and result tables only (imports :mod:`robofleet.core` pieces and matplotlib,
 never the family): ``positions`` holds the leader at index 0, ``estimated_target`` the

@@ -1,4 +1,4 @@
-"""Plots and animations of the ``search`` family (paper 002).
+"""Plots and animations of the ``search`` family (Yang 2017).
 
 Reads traces and result tables only: :func:`plot_trace` (the routes, like Fig. 5),
 :func:`plot_routes` (Figs. 5–6), :func:`animate_trace`, and from the reproduction's
@@ -65,7 +65,7 @@ def plot_coverage_ranges(summary: pd.DataFrame, path: str | Path, columns: dict[
     return save_figure(fig, path, dpi=130, tight=True)
 
 
-def draw_area(ax, trace: Trace, show_grid: bool = True) -> None:
+def draw_area(ax: plt.Axes, trace: Trace, show_grid: bool = True) -> None:
     """Border, obstacles, grid vertices (inaccessible ones as crosses) and targets."""
     ws = trace.workspace
     if ws is not None:

@@ -30,7 +30,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from ...core.config import read_mapping
+from ...core.config import SpecModel, read_mapping
 from ...core.errors import ConfigError
 from ...scenarios import catalogue, load_scenario, simulate
 from ...viz import flocking as viz
@@ -124,7 +124,7 @@ def markdown(tables: dict[str, pd.DataFrame]) -> str:
             markdown_table(tables["comparison"], formats={"runs": "d"}) + "\n")
 
 
-def fig11_scenario(pattern: str, duration: float):
+def fig11_scenario(pattern: str, duration: float) -> SpecModel:
     """The Fig. 11 sweep's scenario (with its fixed overrides) for one pattern and horizon."""
     data, source = read_mapping(catalogue.path(FIG11_SWEEP, "sweeps"))
     scenario = catalogue.resolve(data["scenario"], "scenarios", Path(source).parent)

@@ -1,4 +1,4 @@
-"""Fig. 7 of paper 002 (X. Yang, CCC 2017) and the coverage study behind its Section 3, declared.
+"""Fig. 7 of Yang 2017 (X. Yang, CCC 2017) and the coverage study behind its Section 3, declared.
 
 * **Fig. 7** (``sweeps/search_fig7.yaml``): nine targets evenly spread (situation 1), 1 to
   13 robots starting at random border vertices, the four algorithms (LFP, RU, (1)&(3),
