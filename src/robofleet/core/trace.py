@@ -132,6 +132,8 @@ def to_plain(obj: Any, *, json_safe: bool = False) -> Any:
     if isinstance(obj, (list, tuple)):
         return [to_plain(v, json_safe=json_safe) for v in obj]
     if isinstance(obj, np.ndarray):
+        if obj.dtype.kind in "biu" or (obj.dtype.kind == "f" and (not json_safe or np.isfinite(obj).all())):
+            return obj.tolist()  # numbers only: tolist already gives plain Python scalars
         return to_plain(obj.tolist(), json_safe=json_safe)
     if isinstance(obj, np.generic):
         obj = obj.item()
