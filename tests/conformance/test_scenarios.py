@@ -39,3 +39,13 @@ def test_numpy_integer_seeds_are_the_same_seed(family):
     a, b = robofleet.simulate(spec, seed=np.int64(5)), robofleet.simulate(spec, seed=5)
     assert a.seed == b.seed == 5
     np.testing.assert_array_equal(a.positions, b.positions)
+
+
+@pytest.mark.parametrize("family", sorted(FAMILIES))
+def test_progress_true_shows_the_recorders_bar(family, capsys):
+    name = next(e.name for e in catalogue.list() if e.family == family)
+    spec = robofleet.load_scenario(name, {FAMILIES[family].budget: 3})
+    trace = robofleet.simulate(spec, seed=1, progress=True)
+    shown = capsys.readouterr().out
+    steps = trace.summary()["n_steps"]
+    assert f"{steps}/{steps}" in shown, shown
