@@ -15,7 +15,7 @@ $(STAMP): pyproject.toml
 install: $(STAMP)
 
 demo: $(STAMP)
-	MPLBACKEND=Agg $(BIN)/robofleet run scenarios/avoidance/circle_swap.yaml --seed 1 --out runs/demo --animate
+	MPLBACKEND=Agg $(BIN)/robofleet run scenarios/avoidance/circle_swap.yaml --seed 1 --out runs/demo --overwrite --animate
 
 test: $(STAMP)
 	MPLBACKEND=Agg $(BIN)/python -m pytest -n 2 -q

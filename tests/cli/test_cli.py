@@ -161,3 +161,27 @@ def test_sweep_prints_store_and_means_and_resumes(tmp_path, toy_family, toy_file
     assert len(files) == 4
     main(["sweep", str(sweep), "--executor", "serial", "--out", str(out)])
     assert {p.name: p.stat().st_mtime_ns for p in out.iterdir()} == files
+
+
+def test_out_over_an_earlier_run_needs_overwrite_which_clears_its_files(tmp_path, toy_family, toy_file, capsys):
+    out = tmp_path / "run"
+    main(["run", str(toy_file), "--seed", "1", "--out", str(out), "--quiet"])
+    (out / "notes.txt").write_text("mine")
+    with pytest.raises(SystemExit) as info:
+        main(["run", str(toy_file), "--seed", "2", "--out", str(out), "--quiet"])
+    assert info.value.code == 2
+    assert capsys.readouterr().err.strip().startswith(f"error: --out: expected a new or empty directory (or --overwrite), received {out}")
+    assert Trace.load(out).seed == 1
+    main(["run", str(toy_file), "--seed", "2", "--out", str(out), "--quiet", "--overwrite"])
+    assert Trace.load(out).seed == 2 and (out / "notes.txt").read_text() == "mine"
+
+
+@pytest.mark.parametrize("where", ["file", "under_file"])
+def test_out_that_is_or_lies_under_a_file_is_one_line(tmp_path, robofleet_bin, where):
+    blocker = tmp_path / "blocker"
+    blocker.write_text("x")
+    out = blocker if where == "file" else blocker / "sub"
+    result = run_cli(robofleet_bin, "run", "avoidance/circle_swap", "--out", out, "--quiet")
+    assert_one_line_error(result, "--out: expected a directory", "is a file")
+    result = run_cli(robofleet_bin, "sweep", "buavc_noise", "--out", out, "--quiet")
+    assert_one_line_error(result, "store: expected a directory", "is a file")

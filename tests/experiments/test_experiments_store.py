@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 
+import pandas as pd
 import pyarrow.parquet as pq
 import pytest
 from hypothesis import given, settings
@@ -11,7 +12,9 @@ from hypothesis import strategies as st
 
 from robofleet.core.errors import ConfigError
 from robofleet.experiments import ResultStore, deterministic_columns
-from robofleet.experiments.store import RUN_PREFIX, SUFFIX, check_tasks, file_stem
+from robofleet.experiments import run_tasks
+from robofleet.experiments._selftest import noisy_sum
+from robofleet.experiments.store import RUN_PREFIX, SUFFIX, DamagedRunWarning, check_tasks, file_stem
 from urllib.parse import unquote
 
 
@@ -143,3 +146,29 @@ def test_timing_columns_are_left_out_of_determinism_checks():
 
     frame = pd.DataFrame(columns=["run_id", "seed", "median_step_seconds", "compute_seconds", "makespan"])
     assert deterministic_columns(frame) == ["run_id", "seed", "makespan"]
+
+
+def test_a_truncated_run_file_is_set_aside_with_one_warning_and_redone(tmp_path):
+    store = ResultStore(tmp_path)
+    tasks = [{"run_id": f"t{i}", "seed": i} for i in range(3)]
+    run_tasks(noisy_sum, tasks, store, executor="serial", progress=False)
+    victim = next(tmp_path.glob("run-t1.parquet"))
+    victim.write_bytes(victim.read_bytes()[:40])  # what a crash mid-write without the rename could leave
+    with pytest.warns(DamagedRunWarning, match="run-t1.parquet: set aside") as caught:
+        frame = run_tasks(noisy_sum, tasks, store, executor="serial", progress=False)
+    assert len(caught) == 1
+    assert sorted(frame["run_id"]) == ["t0", "t1", "t2"] and frame["error"].isna().all()
+    assert (tmp_path / "_damaged" / "run-t1.parquet").is_file()
+    assert sorted(pd.read_parquet(tmp_path)["run_id"]) == ["t0", "t1", "t2"]  # readers skip the _damaged folder
+
+
+def test_a_store_file_unreadable_inside_is_set_aside_when_read(tmp_path):
+    store = ResultStore(tmp_path)
+    run_tasks(noisy_sum, [{"run_id": "a", "seed": 1}, {"run_id": "b", "seed": 2}], store, executor="serial", progress=False)
+    path = tmp_path / "run-b.parquet"
+    data = bytearray(path.read_bytes())
+    data[4:60] = bytes(56)  # damaged inside, magic bytes intact
+    path.write_bytes(bytes(data))
+    with pytest.warns(DamagedRunWarning, match="unreadable"):
+        frame = store.read()
+    assert list(frame["run_id"]) == ["a"] and not path.exists()

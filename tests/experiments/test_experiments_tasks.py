@@ -227,3 +227,21 @@ def test_missing_dask_gives_a_clear_error(tmp_path, monkeypatch):
 def test_process_executor_rejects_a_function_workers_cannot_import(tmp_path):
     with pytest.raises(ConfigError, match="fn: expected a module-level function"):
         run_tasks(lambda task: {"x": 1}, make_tasks(2), tmp_path, executor="process", progress=False)
+
+
+def test_ctrl_c_on_the_cli_sweep_exits_130_saying_how_to_resume(tmp_path, robofleet_bin):
+    """Ctrl-C on ``robofleet sweep``: exit status 130 and one line with the stored count."""
+    sweep = tmp_path / "s.yaml"
+    sweep.write_text("scenario: avoidance/ten_boxes\nseeds: 200\n")
+    store = tmp_path / "store"
+    proc = subprocess.Popen([str(robofleet_bin), "sweep", str(sweep), "--out", str(store), "--workers", "2", "--quiet"],
+                            start_new_session=True, stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 120
+    while len(ResultStore(store).finished_ids()) < 2 and time.monotonic() < deadline:
+        time.sleep(0.05)
+    os.killpg(proc.pid, signal.SIGINT)
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == 130
+    lines = [line for line in err.splitlines() if line.strip()]
+    assert len(lines) == 1 and lines[0].startswith("interrupted: ") and "of 200 runs stored" in lines[0], err
+    assert "rerun the same command to resume" in lines[0] and "Traceback" not in err

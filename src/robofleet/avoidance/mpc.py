@@ -73,6 +73,10 @@ class MPCConfig(SpecModel):
     deadlock_progress: float = Field(0.2, ge=0, description="Δp_min [m]: least net displacement over n_dead steps")
     recover_steps: int = Field(10, gt=0, description="steps with the rotated goal")
     max_iter: int = Field(30, gt=0, description="IPOPT iteration cap (nonlinear models)")
+    solver: Literal["ipopt", "rti"] = Field("ipopt", description="nonlinear models: 'ipopt' (full NLP) or 'rti' "
+                                            "(condensed Gauss-Newton SQP around the shifted plan, :mod:`.rti`)")
+    qp_solver: Literal["qpoases", "daqp", "osqp", "hpipm"] = Field("qpoases", description="QP solver of the 'rti' path")
+    sqp_iterations: int = Field(3, gt=0, description="most QPs per solve on the 'rti' path (1 = pure real-time iteration)")
 
 
 class SingleIntegratorParams(SpecModel):
@@ -205,7 +209,14 @@ class BuavcMPC:
             states.append(m.step(states[-1], us[:, k]))
         self._rollout = ca.Function("rollout", [xs, us], [ca.horzcat(*states)])
         self._first_solve = True
-        if m.linear:
+        self._sqp = None
+        if not m.linear and self.config.solver == "rti":
+            from .rti import CondensedSQP
+
+            self._sqp = CondensedSQP(m.step, nx=m.nx, nu=m.nu, dim=m.dim, horizon=N, u_lo=m.u_lo, u_hi=m.u_hi,
+                                     input_weight=self.config.input_weight, qp_solver=self.config.qp_solver,
+                                     iterations=self.config.sqp_iterations)
+        elif m.linear:
             with quiet_stdout():  # qpOASES prints its licence banner on construction
                 self._solver = ca.qpsol("buavc_mpc", QP_SOLVER, problem, QP_OPTIONS[QP_SOLVER])
         else:
@@ -237,8 +248,10 @@ class BuavcMPC:
         (already padded to ``max_constraints``). Returns ``(u_0, predicted positions (N+1, d))``,
         or ``(None, None)`` when the inputs, simulated with the model's own step, leave the cell."""
         m, N = self.model, self.config.horizon
-        p = np.concatenate([state, goal, A.T.ravel(), b - CELL_MARGIN])  # casadi reshape is column-major
         z0 = self._initial_guess(robot, state)
+        if self._sqp is not None:
+            return self._plan_rti(robot, state, goal, A, b, z0)
+        p = np.concatenate([state, goal, A.T.ravel(), b - CELL_MARGIN])  # casadi reshape is column-major
         with quiet_stdout() if self._first_solve else contextlib.nullcontext():  # and on first use
             sol = self._solver(x0=z0, p=p, lbx=self._lbz, ubx=self._ubz, lbg=self._lbg, ubg=self._ubg, lam_g0=self._lam_g[robot])
         self._first_solve = False
@@ -258,6 +271,20 @@ class BuavcMPC:
         self._warm[robot] = np.nan
         self._lam_g[robot] = 0.0
         return None, None
+
+    def _plan_rti(self, robot: int, state: np.ndarray, goal: np.ndarray, A: np.ndarray, b: np.ndarray,
+                  z0: np.ndarray) -> tuple[np.ndarray | None, np.ndarray | None]:
+        """:meth:`plan` on the ``'rti'`` path: SQP from the shifted previous inputs
+        (:class:`~.rti.CondensedSQP`), each iterate accepted only if its exact rollout stays in the cell."""
+        m, N = self.model, self.config.horizon
+        reference = z0[m.nx * (N + 1):].reshape(N, m.nu)
+        U = self._sqp.solve(state, goal, A, b, reference, margin=CELL_MARGIN, tolerance=_CELL_TOL)
+        if U is None:
+            self._warm[robot] = np.nan
+            return None, None
+        X = self.rollout(state, U)
+        self._warm[robot] = np.concatenate([X.ravel(), U.ravel()])
+        return U[0], X[:, : m.dim]
 
     def rollout(self, state: np.ndarray, U: np.ndarray) -> np.ndarray:
         """States ``(N+1, nx)`` reached from ``state`` under the inputs ``U (N, nu)`` with the

@@ -8,16 +8,20 @@ Anything a user can get wrong ends as one line on stderr and exit status 2.
 
 from __future__ import annotations
 
+import os
 import sys
+import warnings
+from contextlib import contextmanager
 from importlib.metadata import version as installed_version
 from pathlib import Path
-from typing import Annotated, Optional
+from typing import Annotated, Iterator, Optional
 
 import pandas as pd
 import typer
 from rich.console import Console
 
-from ..core.errors import RobofleetError
+from ..core.errors import ConfigError, Interrupted, RobofleetError
+from ..core.rng import resolve_seed
 from ..core.trace import dumps_json
 from ..experiments import reproduce as run_reproduction
 from ..experiments import run_sweep, summarize_sweep
@@ -25,6 +29,7 @@ from ..experiments.reproductions import REPRODUCTIONS
 from ..scenarios import FAMILIES, catalogue, family_of, load_scenario, simulate
 from .display import COLUMN_WIDTH, MIN_TABLE_COLUMNS, PREFERRED_COLUMNS, frame_table, key_value_table
 
+INTERRUPTED = 130  # the exit status of a process stopped by Ctrl-C (128 + SIGINT)
 PAPERS = "; ".join(f"{f.name}: {f.paper}" for f in FAMILIES.values())
 app = typer.Typer(add_completion=False, no_args_is_help=True, rich_markup_mode=None,
                   help=f"Decentralized multi-robot coordination, one family per paper ({PAPERS}).")
@@ -36,6 +41,20 @@ ExecutorOption = Annotated[str, typer.Option(help="Where the runs execute: seria
 SchedulerOption = Annotated[Optional[str], typer.Option(help="Dask scheduler address, e.g. tcp://host:8786 (default: a local cluster).")]
 WorkersOption = Annotated[Optional[int], typer.Option(min=1, help="Local worker processes (default: available CPUs).")]
 QuietOption = Annotated[bool, typer.Option("--quiet", help="No progress bar and no result table.")]
+
+
+class Stopped(Exception):
+    """Ctrl-C during a sweep or reproduction, carried past typer (which would turn a
+    ``KeyboardInterrupt`` into a silent exit code) to :func:`main`."""
+
+
+@contextmanager
+def resumable() -> Iterator[None]:
+    """Turn the sweep machinery's :class:`~robofleet.core.errors.Interrupted` into :class:`Stopped`."""
+    try:
+        yield
+    except Interrupted as exc:
+        raise Stopped(str(exc)) from None
 
 
 def version_callback(value: bool) -> None:
@@ -56,13 +75,16 @@ def run_command(
     out: OutOption = None,
     animate: Annotated[bool, typer.Option("--animate", help="Also write animation.gif.")] = False,
     plot: Annotated[bool, typer.Option("--plot", help="Also write plot.png.")] = False,
+    overwrite: Annotated[bool, typer.Option("--overwrite", help="Replace an earlier run's files in --out.")] = False,
     quiet: QuietOption = False,
 ) -> None:
     """Simulate a scenario; write trace.npz, trace.json, summary.json (and plot.png, animation.gif)."""
     spec = load_scenario(scenario)
     family = family_of(spec)
+    seed = resolve_seed(seed, "--seed")
+    out_dir = out if out is not None else Path("runs") / f"{spec.scenario_name or family.name}-seed{seed}"
+    prepare_run_directory(out_dir, overwrite)
     trace = simulate(spec, seed=seed, progress=not quiet)
-    out_dir = out if out is not None else Path("runs") / f"{spec.scenario_name or family.name}-seed{trace.seed}"
     trace.save(out_dir)
     summary = trace.summary()
     (out_dir / "summary.json").write_text(dumps_json(summary) + "\n")
@@ -76,6 +98,38 @@ def run_command(
         family.viz_module().animate_trace(trace, out_dir / "animation.gif")
         written.append("animation.gif")
     typer.echo(f"wrote {out_dir}/ {{{', '.join(written)}}} (seed {trace.seed})")
+
+
+RUN_FILES = ("trace.npz", "trace.json", "summary.json", "plot.png", "animation.gif")
+
+
+def prepare_run_directory(out_dir: Path, overwrite: bool) -> None:
+    """Make ``out_dir`` ready for a run's files, before anything is computed.
+
+    A non-empty directory is refused unless ``overwrite``, which removes the files an
+    earlier run wrote (:data:`RUN_FILES`) and nothing else.
+
+    Raises
+    ------
+    ConfigError
+        ``--out`` is a file or lies under one, is not writable, or holds files without ``--overwrite``.
+    """
+    blocking = next((p for p in (out_dir, *out_dir.parents) if p.exists() and not p.is_dir()), None)
+    if blocking is not None:
+        raise ConfigError(f"--out: expected a directory, received {out_dir} ({blocking} is a file)")
+    present = sorted(p.name for p in out_dir.iterdir()) if out_dir.is_dir() else []
+    if present and not overwrite:
+        shown = ", ".join(present[:4]) + (", ..." if len(present) > 4 else "")
+        raise ConfigError(f"--out: expected a new or empty directory (or --overwrite), received {out_dir}, which holds {shown}")
+    for name in RUN_FILES:
+        (out_dir / name).unlink(missing_ok=True)
+    try:
+        out_dir.mkdir(parents=True, exist_ok=True)
+        probe = out_dir / f".write-test-{os.getpid()}"
+        probe.touch()
+        probe.unlink()
+    except OSError as exc:
+        raise ConfigError(f"--out: expected a writable directory, received {out_dir} ({exc.strerror})") from None
 
 
 @app.command("validate")
@@ -131,7 +185,8 @@ def sweep_command(
     quiet: QuietOption = False,
 ) -> None:
     """Run a sweep, resuming from its result store; print the means per parameter combination."""
-    frame = run_sweep(sweep, executor=executor, scheduler=scheduler, progress=not quiet, workers=workers, out=out)
+    with resumable():
+        frame = run_sweep(sweep, executor=executor, scheduler=scheduler, progress=not quiet, workers=workers, out=out)
     failed = int(frame["error"].notna().sum())
     typer.echo(f"results: {frame.attrs['store']}/ ({frame['run_id'].nunique()} runs, {failed} failed)")
     if frame.attrs.get("other_rows"):
@@ -173,24 +228,35 @@ def reproduce_command(
         raise RobofleetError(f"reproduce: NAME: expected one of {sorted(REPRODUCTIONS)}, received {name!r}")
     declaration = REPRODUCTIONS[name]
     out_dir = out if out is not None else Path("results") / name
-    result = run_reproduction(declaration, out_dir, budget=budget, seeds=seeds, executor=executor, scheduler=scheduler,
-                              workers=workers, progress=not quiet)
+    with resumable():
+        result = run_reproduction(declaration, out_dir, budget=budget, seeds=seeds, executor=executor, scheduler=scheduler,
+                                  workers=workers, progress=not quiet)
     if not quiet:
         typer.echo(result.markdown)
     failed = f"; {result.failed} failed runs (their errors are in the runs store)" if result.failed else ""
     typer.echo(f"wrote {out_dir}/ {{runs/, {', '.join(p.name for p in result.files)}}}{failed}")
 
 
+def show_warning(message: Warning | str, category: type[Warning], filename: str, lineno: int, file: object = None,
+                 line: str | None = None) -> None:
+    """Warnings (a damaged store file set aside, ...) as one line each, without source lines."""
+    typer.echo(f"warning: {message}", err=True)
+
+
 def main(argv: list[str] | None = None) -> None:
     """Entry point: run the CLI, turning robofleet errors into one line and exit status 2."""
+    warnings.showwarning = show_warning
     try:
-        app(args=argv, standalone_mode=False)
+        code = app(args=argv, standalone_mode=False)
+    except Stopped as exc:
+        typer.echo(str(exc), err=True)
+        sys.exit(INTERRUPTED)
     except RobofleetError as exc:
         typer.echo(f"error: {exc}", err=True)
         sys.exit(2)
     except (typer.Abort, KeyboardInterrupt):
         typer.echo("interrupted; finished results are kept", err=True)
-        sys.exit(130)
+        sys.exit(INTERRUPTED)
     except typer.Exit as exc:
         sys.exit(exc.exit_code)
     except Exception as exc:
@@ -201,6 +267,10 @@ def main(argv: list[str] | None = None) -> None:
             show()
             sys.exit(code)
         raise
+    if code == INTERRUPTED:  # typer's answer to Ctrl-C outside a sweep
+        typer.echo("interrupted; nothing of the interrupted run was written", err=True)
+    if isinstance(code, int) and code:
+        sys.exit(code)
 
 
 if __name__ == "__main__":

@@ -62,6 +62,11 @@ class TraceError(RobofleetError, ValueError):
     """A trace file is missing, corrupt or of an unknown version."""
 
 
+class Interrupted(KeyboardInterrupt):
+    """Ctrl-C during a sweep: a ``KeyboardInterrupt`` whose message says how many runs
+    the store holds and how to resume."""
+
+
 def short_repr(value: Any, limit: int = 80) -> str:
     """``repr(value)`` cut to ``limit`` characters, on one line."""
     text = repr(value).replace("\n", " ")

@@ -12,6 +12,12 @@ Layout
     killed mid-write leaves either the complete file or only a hidden temporary that
     readers ignore (Parquet readers skip names starting with ``.``).
 
+``<store>/_damaged/``
+    Files found damaged (truncated by a crash, or not Parquet at all), set aside with one
+    warning each; their tasks count as not finished and run again.
+
+Every write is fsynced before the rename and the directory after it.
+
 ``<id>`` is the task's ``run_id`` percent-encoded (:func:`urllib.parse.quote`), so any
 string is a valid run id and the set of finished ids is read from the directory listing
 alone, without opening a file.
@@ -30,6 +36,7 @@ from __future__ import annotations
 import json
 import os
 import uuid
+import warnings
 from pathlib import Path
 from typing import Any, Iterable, Mapping
 from urllib.parse import quote, unquote
@@ -48,6 +55,7 @@ SUFFIX = ".parquet"
 ERROR_COLUMN = "error"
 TIMING_SUFFIX = "_seconds"
 MAX_NAME_LENGTH = 240  # most file systems allow 255 bytes per name
+DAMAGED_FOLDER = "_damaged"
 
 
 def file_stem(run_id: str) -> str:
@@ -144,15 +152,39 @@ class ResultStore:
         return self._atomic_write(ERROR_PREFIX + file_stem(str(task["run_id"])) + SUFFIX, rows_to_table([row]))
 
     def _atomic_write(self, name: str, table: pa.Table) -> Path:
+        """Write under a hidden name, fsync, rename, fsync the directory: after a crash the
+        file is either complete or absent."""
         self.directory.mkdir(parents=True, exist_ok=True)
         final = self.directory / name
         temp = self.directory / f".{name}.tmp-{os.getpid()}-{uuid.uuid4().hex[:8]}"
         try:
             pq.write_table(table, temp)
+            with open(temp, "rb") as handle:
+                os.fsync(handle.fileno())
             os.replace(temp, final)
+            sync_directory(self.directory)
         finally:
             temp.unlink(missing_ok=True)
         return final
+
+    # -- damage ------------------------------------------------------------------
+    def set_aside(self, path: Path, reason: str) -> Path:
+        """Move a damaged store file into ``<store>/_damaged/`` (readers skip ``_`` folders)
+        and warn once; its task then counts as not finished and is run again."""
+        target = self.directory / DAMAGED_FOLDER / path.name
+        target.parent.mkdir(exist_ok=True)
+        os.replace(path, target)
+        warnings.warn(DamagedRunWarning(f"{path}: set aside as {target} ({reason}); its run is redone"), stacklevel=2)
+        return target
+
+    def set_aside_damaged(self) -> list[Path]:
+        """Set aside every store file that is not a complete Parquet file (a truncated or
+        foreign file: no ``PAR1`` magic at both ends); returns the files moved."""
+        moved = []
+        for path in [*self._files(RUN_PREFIX).values(), *self._files(ERROR_PREFIX).values()]:
+            if not has_parquet_magic(path):
+                moved.append(self.set_aside(path, "not a complete Parquet file"))
+        return moved
 
     # -- reading -----------------------------------------------------------------
     def read(self) -> pd.DataFrame:
@@ -165,8 +197,7 @@ class ResultStore:
         failed = {k: v for k, v in self._files(ERROR_PREFIX).items() if k not in finished}
         every = {**failed, **finished}
         paths = [every[k] for k in sorted(every)]
-        tables = [read_parquet(p) for p in paths]
-        tables = [t for t in tables if t.num_rows]
+        tables = [table for table in (self._read_or_set_aside(p) for p in paths) if table is not None and table.num_rows]
         if not tables:
             return pd.DataFrame({"run_id": pd.Series(dtype=object), "seed": pd.Series(dtype="int64"), ERROR_COLUMN: pd.Series(dtype=object)})
         frame = pa.concat_tables(tables, promote_options="permissive").to_pandas()
@@ -174,6 +205,47 @@ class ResultStore:
             frame[ERROR_COLUMN] = None
         frame[ERROR_COLUMN] = frame[ERROR_COLUMN].astype(object).where(frame[ERROR_COLUMN].notna(), None)
         return frame
+
+
+    def _read_or_set_aside(self, path: Path) -> pa.Table | None:
+        """One store file, or ``None`` after setting it aside when it cannot be read."""
+        try:
+            return read_parquet(path)
+        except (OSError, pa.ArrowException) as exc:
+            self.set_aside(path, f"unreadable: {type(exc).__name__}")
+            return None
+
+
+class DamagedRunWarning(UserWarning):
+    """A store file was damaged (e.g. truncated by a crash) and set aside; its run is redone."""
+
+
+PARQUET_MAGIC = b"PAR1"
+
+
+def has_parquet_magic(path: Path) -> bool:
+    """Whether ``path`` starts and ends with the Parquet magic bytes (cheap completeness check)."""
+    try:
+        with open(path, "rb") as handle:
+            head = handle.read(4)
+            handle.seek(-4, os.SEEK_END)
+            return head == PARQUET_MAGIC and handle.read(4) == PARQUET_MAGIC
+    except OSError:
+        return False
+
+
+def sync_directory(directory: Path) -> None:
+    """fsync a directory so a rename in it survives a crash (a no-op where unsupported)."""
+    try:
+        fd = os.open(directory, os.O_RDONLY)
+    except OSError:
+        return
+    try:
+        os.fsync(fd)
+    except OSError:
+        pass
+    finally:
+        os.close(fd)
 
 
 def read_parquet(path: Path) -> pa.Table:

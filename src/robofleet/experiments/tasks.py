@@ -7,6 +7,7 @@ from typing import Iterable, Mapping
 
 import pandas as pd
 
+from ..core.errors import ConfigError, Interrupted
 from ..core.progress import tracked
 from .executors import Executor, TaskFn, as_executor, execute
 from .store import ResultStore, check_tasks
@@ -60,11 +61,18 @@ def run_tasks(
     ------
     ConfigError
         On malformed tasks (missing/duplicate ``run_id``, bad ``seed``) or arguments.
+    Interrupted
+        On Ctrl-C (a ``KeyboardInterrupt``): finished runs are kept, and the message says
+        how many are stored and that the same call resumes.
     """
     checked = check_tasks(tasks)
     kind = as_executor(executor)
     store = store if isinstance(store, ResultStore) else ResultStore(store)
+    blocking = next((p for p in (store.directory, *store.directory.parents) if p.exists() and not p.is_dir()), None)
+    if blocking is not None:
+        raise ConfigError(f"store: expected a directory, received {store.directory} ({blocking} is a file)")
     store.remove_temporaries()
+    store.set_aside_damaged()
     finished = store.finished_ids()
     pending = [t for t in checked if t["run_id"] not in finished]
     if pending:
@@ -79,6 +87,10 @@ def run_tasks(
                     else:
                         store.write_error(task, payload)
                     advance()
+        except KeyboardInterrupt:
+            stored = len(store.finished_ids() & {t["run_id"] for t in checked})
+            raise Interrupted(f"interrupted: {stored} of {len(checked)} runs stored in {store.directory}; "
+                              "rerun the same command to resume") from None
         finally:
             results.close()
     return store.read()
