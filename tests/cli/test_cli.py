@@ -157,10 +157,10 @@ def test_sweep_prints_store_and_means_and_resumes(tmp_path, toy_family, toy_file
     printed = capsys.readouterr().out
     assert f"results: {out}/ (4 runs, 0 failed)" in printed
     assert "means per parameter combination" in printed and "robots.n" in printed
-    files = {p.name: p.stat().st_mtime_ns for p in out.iterdir()}
+    files = {p.name: p.stat().st_mtime_ns for p in out.glob("*.parquet")}
     assert len(files) == 4
     main(["sweep", str(sweep), "--executor", "serial", "--out", str(out)])
-    assert {p.name: p.stat().st_mtime_ns for p in out.iterdir()} == files
+    assert {p.name: p.stat().st_mtime_ns for p in out.glob("*.parquet")} == files
 
 
 def test_out_over_an_earlier_run_needs_overwrite_which_clears_its_files(tmp_path, toy_family, toy_file, capsys):

@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import json
+import subprocess
+import sys
 
 import pandas as pd
 import pyarrow.parquet as pq
@@ -14,7 +16,7 @@ from robofleet.core.errors import ConfigError
 from robofleet.experiments import ResultStore, deterministic_columns
 from robofleet.experiments import run_tasks
 from robofleet.experiments._selftest import noisy_sum
-from robofleet.experiments.store import RUN_PREFIX, SUFFIX, DamagedRunWarning, check_tasks, file_stem
+from robofleet.experiments.store import RUN_PREFIX, SUFFIX, DamagedRunWarning, StoreBusyError, check_tasks, file_stem
 from urllib.parse import unquote
 
 
@@ -172,3 +174,34 @@ def test_a_store_file_unreadable_inside_is_set_aside_when_read(tmp_path):
     with pytest.warns(DamagedRunWarning, match="unreadable"):
         frame = store.read()
     assert list(frame["run_id"]) == ["a"] and not path.exists()
+
+
+def test_every_store_file_gets_the_same_columns_so_pandas_and_polars_read_all_rows(tmp_path):
+    polars = pytest.importorskip("polars")
+    tasks = [{"run_id": "ok", "seed": 1}, {"run_id": "bad", "seed": 2, "fail": True}, {"run_id": "rows", "seed": 3, "rows": 2}]
+    run_tasks(noisy_sum, tasks, tmp_path, executor="serial", progress=False)
+    schemas = {p.name: pq.read_schema(p) for p in tmp_path.glob("*.parquet")}
+    assert len(schemas) == 3 and len({s.to_string() for s in schemas.values()}) == 1
+    assert len(pd.read_parquet(tmp_path)) == 4
+    frame = polars.read_parquet(str(tmp_path / "*.parquet"))
+    assert frame.height == 4 and "error" in frame.columns
+
+
+def test_a_second_writer_on_the_same_store_is_refused_in_one_line(tmp_path):
+    script = (
+        "import sys, time\n"
+        "from robofleet.experiments import ResultStore\n"
+        f"with ResultStore({str(tmp_path)!r}).writer_lock():\n"
+        "    print('locked', flush=True)\n"
+        "    time.sleep(30)\n"
+    )
+    holder = subprocess.Popen([sys.executable, "-c", script], stdout=subprocess.PIPE, text=True)
+    try:
+        assert holder.stdout.readline().strip() == "locked"
+        with pytest.raises(StoreBusyError, match=rf"which process {holder.pid} is writing"):
+            run_tasks(noisy_sum, [{"run_id": "a", "seed": 1}], tmp_path, executor="serial", progress=False)
+    finally:
+        holder.kill()
+        holder.wait()
+    run_tasks(noisy_sum, [{"run_id": "a", "seed": 1}], tmp_path, executor="serial", progress=False)  # free again
+    assert ResultStore(tmp_path).finished_ids() == {"a"}

@@ -66,9 +66,9 @@ def test_end_to_end_rows_summary_and_resume(tmp_path, toy_family):
     replay = simulate(spec, seed=int(row["seed"])).summary()
     assert replay["final_spread"] == row["final_spread"] and replay["n_robots"] == row["robots.n"]
     # re-running writes nothing new
-    before = {p.name: p.stat().st_mtime_ns for p in (tmp_path / "out").iterdir()}
+    before = {p.name: p.stat().st_mtime_ns for p in (tmp_path / "out").glob("*.parquet")}
     again = run_sweep(path, executor="serial", progress=False)
-    assert {p.name: p.stat().st_mtime_ns for p in (tmp_path / "out").iterdir()} == before
+    assert {p.name: p.stat().st_mtime_ns for p in (tmp_path / "out").glob("*.parquet")} == before
     pd.testing.assert_frame_equal(again, frame)
 
 

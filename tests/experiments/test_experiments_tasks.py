@@ -91,10 +91,10 @@ def test_rerun_skips_finished_tasks(tmp_path, executor):
     tasks = make_tasks(8, marker_dir=str(markers))
     run_tasks(noisy_sum, tasks[:5], tmp_path / "store", executor=executor, workers=2, progress=False)
     assert calls(markers) == 5
-    before = {p.name: p.stat().st_mtime_ns for p in (tmp_path / "store").iterdir()}
+    before = {p.name: p.stat().st_mtime_ns for p in (tmp_path / "store").glob("*.parquet")}
     frame = run_tasks(noisy_sum, tasks, tmp_path / "store", executor=executor, workers=2, progress=False)
     assert calls(markers) == 8  # only the three new tasks ran
-    assert {p.name: p.stat().st_mtime_ns for p in (tmp_path / "store").iterdir() if p.name in before} == before
+    assert {p.name: p.stat().st_mtime_ns for p in (tmp_path / "store").glob("*.parquet") if p.name in before} == before
     assert sorted(frame["run_id"]) == [t["run_id"] for t in tasks]
     run_tasks(noisy_sum, tasks, tmp_path / "store", executor=executor, progress=False)
     assert calls(markers) == 8

@@ -16,7 +16,8 @@ the reference is the previous plan shifted by one step, and each iteration
 
    with ``s = max(‖g − p̂‖², 1)`` as in :mod:`.mpc` (Gauss–Newton Hessian);
 3. rolls out ``ū + δ`` exactly; the iterate is a candidate only if that rollout stays in
-   the cell (the same check as for the IPOPT path).
+   the cell (the same check as for the IPOPT path). The reference itself is a candidate
+   too when its rollout stays in the cell (as the shifted plan is on the IPOPT path).
 
 It stops at the first candidate whose increment is small, or after ``iterations`` QPs,
 and returns the last candidate (``None`` if no iterate's rollout stayed in the cell).
@@ -89,7 +90,7 @@ class CondensedSQP:
         A, b = A[used], b[used]
         u = np.clip(reference.ravel(), self.u_lo, self.u_hi)
         scale = max(float(np.sum((goal - state[: self.dim]) ** 2)), 1.0)
-        best = None
+        best = u.copy() if self._in_cell(state, u, A, b + tolerance) else None  # the shifted plan itself is a valid plan
         for _ in range(self.iterations):
             p_ref, J = (np.asarray(v) for v in self._linearize(state, u))
             p_ref = p_ref.ravel()
@@ -97,12 +98,16 @@ class CondensedSQP:
             if delta is None:
                 break
             u = np.clip(u + delta, self.u_lo, self.u_hi)
-            p_new = np.asarray(self._linearize(state, u)[0]).reshape(self.N, self.dim)
-            if np.all(p_new @ A.T <= b + tolerance):
+            if self._in_cell(state, u, A, b + tolerance):
                 best = u.copy()
                 if np.max(np.abs(delta)) <= 1e-3:
                     break
         return None if best is None else best.reshape(self.N, self.nu)
+
+    def _in_cell(self, state: np.ndarray, u: np.ndarray, A: np.ndarray, b: np.ndarray) -> bool:
+        """Whether the exact rollout of ``u`` keeps every predicted position in ``A p ≤ b``."""
+        positions = np.asarray(self._linearize(state, u)[0]).reshape(self.N, self.dim)
+        return bool(np.all(positions @ A.T <= b))
 
     def _increment(self, u: np.ndarray, p_ref: np.ndarray, J: np.ndarray, goal: np.ndarray, A: np.ndarray, b: np.ndarray,
                    scale: float) -> np.ndarray | None:

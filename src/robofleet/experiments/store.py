@@ -25,7 +25,8 @@ alone, without opening a file.
 Failures are kept (they show up in :meth:`ResultStore.read` with their ``error``) but a
 failed task counts as *not finished*: the next run of the same tasks retries it, and its
 ``run-`` file then replaces the ``error-`` file. The store has one writer at a time (the
-process driving the sweep); workers only compute.
+process driving the sweep, holding ``<store>/.writer.lock``); a second sweep on the same
+directory is refused with one line; workers only compute.
 
 Columns whose name ends in ``_seconds`` are wall-clock timings: they differ between two
 runs of the same seed, and :func:`deterministic_columns` leaves them out.
@@ -37,14 +38,20 @@ import json
 import os
 import uuid
 import warnings
+from contextlib import contextmanager
 from pathlib import Path
-from typing import Any, Iterable, Mapping
+from typing import Any, Iterable, Iterator, Mapping
 from urllib.parse import quote, unquote
 
 import numpy as np
 import pandas as pd
 import pyarrow as pa
 import pyarrow.parquet as pq
+
+try:
+    import fcntl
+except ImportError:  # Windows: no advisory locks, the store then assumes one writer
+    fcntl = None
 
 from ..core.errors import ConfigError
 from ..core.trace import to_plain
@@ -56,6 +63,7 @@ ERROR_COLUMN = "error"
 TIMING_SUFFIX = "_seconds"
 MAX_NAME_LENGTH = 240  # most file systems allow 255 bytes per name
 DAMAGED_FOLDER = "_damaged"
+LOCK_NAME = ".writer.lock"
 
 
 def file_stem(run_id: str) -> str:
@@ -167,6 +175,59 @@ class ResultStore:
             temp.unlink(missing_ok=True)
         return final
 
+    # -- one writer --------------------------------------------------------------
+    @contextmanager
+    def writer_lock(self) -> Iterator[None]:
+        """Hold the store's writer lock (``<store>/.writer.lock``, an advisory ``flock``
+        released by the OS if the process dies) for the duration of the block.
+
+        Raises
+        ------
+        StoreBusyError
+            If another process holds it: a second sweep on the same directory is refused
+            rather than racing the first one. (Where ``fcntl`` is missing, e.g. Windows,
+            there is no lock and the store assumes one writer.)
+        """
+        if fcntl is None:
+            yield
+            return
+        self.directory.mkdir(parents=True, exist_ok=True)
+        with open(self.directory / LOCK_NAME, "a+") as handle:
+            try:
+                fcntl.flock(handle.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except BlockingIOError:
+                handle.seek(0)
+                holder = handle.read().strip() or "?"
+                raise StoreBusyError(f"store: expected a store no other sweep is writing to, received {self.directory}, "
+                                     f"which process {holder} is writing; wait for it or choose another --out") from None
+            handle.seek(0)
+            handle.truncate()
+            handle.write(str(os.getpid()))
+            handle.flush()
+            try:
+                yield
+            finally:
+                fcntl.flock(handle.fileno(), fcntl.LOCK_UN)
+
+    # -- one schema --------------------------------------------------------------
+    def unify_columns(self) -> int:
+        """Give every store file the same columns and types (the union of all files', with
+        nulls where a file lacks a column), so that ``pandas.read_parquet(store)`` and
+        ``polars.read_parquet(store / "*.parquet")`` read every row. Rewrites only the files
+        that differ; returns how many were rewritten. Call it only from the store's writer.
+        """
+        paths = [*self._files(RUN_PREFIX).values(), *self._files(ERROR_PREFIX).values()]
+        schemas = {path: pq.read_schema(path) for path in paths}
+        if len({schema for schema in schemas.values()}) <= 1:
+            return 0
+        unified = pa.unify_schemas(list(schemas.values()), promote_options="permissive")
+        rewritten = 0
+        for path, schema in schemas.items():
+            if not schema.equals(unified):
+                self._atomic_write(path.name, conform(read_parquet(path), unified))
+                rewritten += 1
+        return rewritten
+
     # -- damage ------------------------------------------------------------------
     def set_aside(self, path: Path, reason: str) -> Path:
         """Move a damaged store file into ``<store>/_damaged/`` (readers skip ``_`` folders)
@@ -214,6 +275,17 @@ class ResultStore:
         except (OSError, pa.ArrowException) as exc:
             self.set_aside(path, f"unreadable: {type(exc).__name__}")
             return None
+
+
+def conform(table: pa.Table, schema: pa.Schema) -> pa.Table:
+    """``table`` with exactly the columns of ``schema``, in its order (null where missing)."""
+    columns = [table.column(f.name).cast(f.type) if f.name in table.column_names else pa.nulls(table.num_rows, f.type)
+               for f in schema]
+    return pa.Table.from_arrays(columns, schema=schema)
+
+
+class StoreBusyError(ConfigError):
+    """Another process is writing to this result store."""
 
 
 class DamagedRunWarning(UserWarning):

@@ -61,6 +61,8 @@ def run_tasks(
     ------
     ConfigError
         On malformed tasks (missing/duplicate ``run_id``, bad ``seed``) or arguments.
+    StoreBusyError
+        When another process is writing to the same store (one writer at a time).
     Interrupted
         On Ctrl-C (a ``KeyboardInterrupt``): finished runs are kept, and the message says
         how many are stored and that the same call resumes.
@@ -71,26 +73,28 @@ def run_tasks(
     blocking = next((p for p in (store.directory, *store.directory.parents) if p.exists() and not p.is_dir()), None)
     if blocking is not None:
         raise ConfigError(f"store: expected a directory, received {store.directory} ({blocking} is a file)")
-    store.remove_temporaries()
-    store.set_aside_damaged()
-    finished = store.finished_ids()
-    pending = [t for t in checked if t["run_id"] not in finished]
-    if pending:
-        skipped = len(checked) - len(pending)
-        label = f"{len(pending)} runs" + (f" ({skipped} already done)" if skipped else "")
-        results = execute(fn, pending, kind, scheduler, workers)
-        try:
-            with tracked(len(pending), label, enabled=progress) as advance:
-                for task, (status, payload) in results:
-                    if status == "ok":
-                        store.write_rows(task, payload)
-                    else:
-                        store.write_error(task, payload)
-                    advance()
-        except KeyboardInterrupt:
-            stored = len(store.finished_ids() & {t["run_id"] for t in checked})
-            raise Interrupted(f"interrupted: {stored} of {len(checked)} runs stored in {store.directory}; "
-                              "rerun the same command to resume") from None
-        finally:
-            results.close()
-    return store.read()
+    with store.writer_lock():
+        store.remove_temporaries()
+        store.set_aside_damaged()
+        finished = store.finished_ids()
+        pending = [t for t in checked if t["run_id"] not in finished]
+        if pending:
+            skipped = len(checked) - len(pending)
+            label = f"{len(pending)} runs" + (f" ({skipped} already done)" if skipped else "")
+            results = execute(fn, pending, kind, scheduler, workers)
+            try:
+                with tracked(len(pending), label, enabled=progress) as advance:
+                    for task, (status, payload) in results:
+                        if status == "ok":
+                            store.write_rows(task, payload)
+                        else:
+                            store.write_error(task, payload)
+                        advance()
+            except KeyboardInterrupt:
+                stored = len(store.finished_ids() & {t["run_id"] for t in checked})
+                raise Interrupted(f"interrupted: {stored} of {len(checked)} runs stored in {store.directory}; "
+                                  "rerun the same command to resume") from None
+            finally:
+                results.close()
+            store.unify_columns()
+        return store.read()
