@@ -75,7 +75,7 @@ class MPCConfig(SpecModel):
     max_iter: int = Field(30, gt=0, description="IPOPT iteration cap (nonlinear models)")
     solver: Literal["ipopt", "rti"] = Field("ipopt", description="nonlinear models: 'ipopt' (full NLP) or 'rti' "
                                             "(condensed Gauss-Newton SQP around the shifted plan, :mod:`.rti`)")
-    qp_solver: Literal["qpoases", "daqp", "osqp", "hpipm"] = Field("qpoases", description="QP solver of the 'rti' path")
+    qp_solver: Literal["daqp", "qpoases", "osqp"] = Field("daqp", description="QP solver of the 'rti' path")
     sqp_iterations: int = Field(3, gt=0, description="most QPs per solve on the 'rti' path (1 = pure real-time iteration)")
 
 

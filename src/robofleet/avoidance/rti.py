@@ -21,8 +21,9 @@ the reference is the previous plan shifted by one step, and each iteration
 
 It stops at the first candidate whose increment is small, or after ``iterations`` QPs,
 and returns the last candidate (``None`` if no iterate's rollout stayed in the cell).
-The QP is solved by a structure-free dense active-set solver through casadi's
-``conic`` interface (qpOASES by default); one solver is built per number of used cell
+The QP is solved by a dense solver through casadi's ``conic`` interface (DAQP, the
+dual active-set solver of Arnström, Bemporad and Axehill 2022, by default; qpOASES, OSQP
+selectable); one solver is built per number of used cell
 rows, so padding rows never enter the QP.
 """
 
@@ -35,8 +36,7 @@ import numpy as np
 QP_OPTIONS = {
     "qpoases": {"printLevel": "none", "error_on_fail": False, "sparse": False},
     "daqp": {"error_on_fail": False},
-    "osqp": {"osqp": {"verbose": False, "eps_abs": 1e-7, "eps_rel": 1e-7, "polish": True}, "error_on_fail": False},
-    "hpipm": {"error_on_fail": False},
+    "osqp": {"osqp": {"verbose": False, "eps_abs": 1e-7, "eps_rel": 1e-7, "polish": False}, "error_on_fail": False},
 }
 
 
@@ -55,7 +55,7 @@ class CondensedSQP:
     """
 
     def __init__(self, step: Callable, *, nx: int, nu: int, dim: int, horizon: int, u_lo: np.ndarray, u_hi: np.ndarray,
-                 input_weight: float, qp_solver: str = "qpoases", iterations: int = 3):
+                 input_weight: float, qp_solver: str = "daqp", iterations: int = 3):
         import casadi as ca
 
         self.nx, self.nu, self.dim, self.N = nx, nu, dim, horizon
@@ -78,7 +78,10 @@ class CondensedSQP:
         if rows not in self._solvers:
             n = self.nu * self.N
             spec = {"h": ca.Sparsity.dense(n, n), "a": ca.Sparsity.dense(rows, n)}
-            self._solvers[rows] = ca.conic("rti_qp", self.qp_solver, spec, QP_OPTIONS[self.qp_solver])
+            from .mpc import quiet_stdout  # qpOASES prints its licence banner on construction
+
+            with quiet_stdout():
+                self._solvers[rows] = ca.conic("rti_qp", self.qp_solver, spec, QP_OPTIONS[self.qp_solver])
         return self._solvers[rows]
 
     def solve(self, state: np.ndarray, goal: np.ndarray, A: np.ndarray, b: np.ndarray, reference: np.ndarray, *, margin: float,

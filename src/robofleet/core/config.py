@@ -10,12 +10,13 @@ scenario layer has to import it.
 from __future__ import annotations
 
 import copy
+import math
 from pathlib import Path
 from typing import Any, Mapping, TypeVar
 
 import numpy as np
 import yaml
-from pydantic import BaseModel, ConfigDict, PrivateAttr, ValidationError
+from pydantic import BaseModel, ConfigDict, PrivateAttr, ValidationError, model_validator
 
 from .errors import ScenarioError
 
@@ -25,11 +26,26 @@ YAML_LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
 """libyaml's safe loader where PyYAML was built with it (about 10× faster), else PyYAML's."""
 
 
+MAX_MAGNITUDE = 1e9
+"""The largest magnitude any real number of a spec may have: far beyond every sensible
+length, time or speed here, and far below where float arithmetic loses metres."""
+
+
 class SpecModel(BaseModel):
-    """Base of every scenario model: frozen, keyword-only, unknown keys are errors."""
+    """Base of every scenario model: frozen, keyword-only, unknown keys are errors, and
+    every number in it (fields, and lists or mappings of numbers) is finite with a
+    magnitude of at most :data:`MAX_MAGNITUDE` (integers: any size)."""
 
     model_config = ConfigDict(extra="forbid", frozen=True, arbitrary_types_allowed=True)
     _source: str | None = PrivateAttr(default=None)
+
+    @model_validator(mode="after")
+    def _finite_numbers(self) -> "SpecModel":
+        for name in type(self).model_fields:
+            bad = first_unreasonable_number(getattr(self, name), name)
+            if bad is not None:
+                raise ScenarioError(bad[0], f"a finite number of magnitude at most {MAX_MAGNITUDE:g}", bad[1])
+        return self
 
     @property
     def source(self) -> str | None:
@@ -41,6 +57,28 @@ class SpecModel(BaseModel):
         """The scenario's ``name`` field, else its file's stem, else ``""``."""
         name = getattr(self, "name", "")
         return str(name) if name else (Path(self._source).stem if self._source else "")
+
+
+def first_unreasonable_number(value: Any, path: str) -> tuple[str, Any] | None:
+    """``(field path, number)`` of the first NaN, infinite or huge number in ``value``
+    (a number, or nested lists, tuples, mappings and arrays of them); nested spec models
+    check themselves."""
+    if isinstance(value, (bool, np.bool_, str, BaseModel)) or value is None:
+        return None
+    if isinstance(value, (int, np.integer)):
+        return None  # integers (counts, seeds up to 2**63) are exact and always finite
+    if isinstance(value, (float, np.floating)):
+        number = float(value)
+        return None if math.isfinite(number) and abs(number) <= MAX_MAGNITUDE else (path, value)
+    if isinstance(value, np.ndarray) and value.dtype.kind == "f":
+        bad = np.flatnonzero(~np.isfinite(value) | (np.abs(value) > MAX_MAGNITUDE))
+        return None if not len(bad) else (f"{path}[{bad[0]}]", value.flat[bad[0]])
+    items = value.items() if isinstance(value, Mapping) else enumerate(value) if isinstance(value, (list, tuple)) else ()
+    for key, item in items:
+        found = first_unreasonable_number(item, f"{path}.{key}" if isinstance(value, Mapping) else f"{path}[{key}]")
+        if found is not None:
+            return found
+    return None
 
 
 def read_mapping(path_or_mapping: str | Path | Mapping[str, Any]) -> tuple[dict, str | None]:
