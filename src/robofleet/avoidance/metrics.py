@@ -34,6 +34,7 @@ RESULTS: dict[str, str] = {
     "deadlock_detections": "deadlocks detected by the heuristic of appendix C (robot-events)",
     "empty_cell_steps": "robot-steps whose cell was empty (the robot held still)",
     "mpc_fallback_steps": "robot-steps where the MPC plan left the cell and the safe fallback input was applied",
+    "mpc_fallback_share": "MPC fallback robot-steps over the robot-steps an MPC solved for (robots not yet arrived); null without MPC",
     "pair_step_rate": "colliding (pair, step) couples over all couples, the frequency the chance constraint bounds by δ",
     "pair_rate": "share of robot pairs that collided at least once",
     "obstacle_step_rate": "colliding (robot, step) couples with obstacles over all couples",
@@ -48,6 +49,7 @@ class ControllerCounts:
     deadlock_detections: int = 0
     empty_cell_steps: int = 0
     mpc_fallback_steps: int = 0
+    mpc_solve_steps: int = 0
 
 
 def box_distance(points: np.ndarray, centers: np.ndarray, sizes: np.ndarray, yaws: np.ndarray) -> np.ndarray:
@@ -142,6 +144,7 @@ def run_results(
         out["collision_steps"] = int(pair_contacts + obstacle_hits)
         out["success"] = bool(out["success"] and obstacle_hits == 0)
     out.update(deadlock_detections=counts.deadlock_detections, empty_cell_steps=counts.empty_cell_steps,
-               mpc_fallback_steps=counts.mpc_fallback_steps)
+               mpc_fallback_steps=counts.mpc_fallback_steps,
+               mpc_fallback_share=counts.mpc_fallback_steps / counts.mpc_solve_steps if counts.mpc_solve_steps else None)
     out.update(collision_frequencies(positions.shape[1], len(positions), pair_contacts, out["collisions"], obstacle_hits))
     return out

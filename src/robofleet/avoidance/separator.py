@@ -25,6 +25,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..core.errors import ConfigError, short_repr
+
 _REG = 1e-12  # relative regularisation for singular covariances
 _TOL_T = 1e-12
 _MAX_ITER = 100
@@ -44,21 +46,69 @@ def gaussian_separator(mean_i: np.ndarray, cov_i: np.ndarray, mean_j: np.ndarray
     a: ``(..., d)`` unit normals pointing from ``i`` towards ``j``.
     b: ``(...)`` offsets; robot ``i``'s half-space is ``a·p ≤ b``.
 
+    Raises
+    ------
+    ConfigError
+        Naming the argument: not numbers, shapes that are not ``(..., d)`` / ``(..., d, d)``
+        with one ``d`` or do not broadcast, NaN or infinite entries, covariances that are
+        not symmetric positive semi-definite, or equal means (no separator exists).
+
     Notes
     -----
     Reciprocity: swapping the roles of ``i`` and ``j`` returns ``(−a, −b)`` (``t' = 1 − t``).
     Cost: O(K · iterations · d³) for K pairs, d ≤ 3; equal covariances take one iteration.
     """
-    mean_i, mean_j = np.asarray(mean_i, float), np.asarray(mean_j, float)
-    cov_i, cov_j = np.asarray(cov_i, float), np.asarray(cov_j, float)
-    d = mean_i.shape[-1]
-    lead = np.broadcast_shapes(mean_i.shape[:-1], mean_j.shape[:-1], cov_i.shape[:-2], cov_j.shape[:-2])
+    mean_i, mean_j = as_float_array(mean_i, "mean_i"), as_float_array(mean_j, "mean_j")
+    cov_i, cov_j = as_float_array(cov_i, "cov_i"), as_float_array(cov_j, "cov_j")
+    d = check_shapes(mean_i, cov_i, mean_j, cov_j)
+    try:
+        lead = np.broadcast_shapes(mean_i.shape[:-1], mean_j.shape[:-1], cov_i.shape[:-2], cov_j.shape[:-2])
+    except ValueError:
+        raise ConfigError(f"mean_i, cov_i, mean_j, cov_j: expected leading axes that broadcast, received shapes "
+                          f"{mean_i.shape}, {cov_i.shape}, {mean_j.shape}, {cov_j.shape}") from None
+    for name, cov in (("cov_i", cov_i), ("cov_j", cov_j)):
+        check_covariance(cov, name)
     mi = np.broadcast_to(mean_i, lead + (d,)).reshape(-1, d)
     mj = np.broadcast_to(mean_j, lead + (d,)).reshape(-1, d)
     ci = np.broadcast_to(cov_i, lead + (d, d)).reshape(-1, d, d)
     cj = np.broadcast_to(cov_j, lead + (d, d)).reshape(-1, d, d)
+    equal = np.flatnonzero(np.all(mi == mj, axis=1))
+    if len(equal):
+        raise ConfigError(f"mean_i, mean_j: expected distinct means (no separator exists between equal means), "
+                          f"received equal means {mi[equal[0]].tolist()} at flat index {int(equal[0])}")
     a, b = separator_flat(mi, ci, mj, cj)
     return a.reshape(lead + (d,)), b.reshape(lead)
+
+
+def as_float_array(value: object, name: str) -> np.ndarray:
+    """``value`` as a finite float array, or a :class:`ConfigError` naming ``name``."""
+    try:
+        array = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise ConfigError(f"{name}: expected an array of numbers, received {short_repr(value)}") from None
+    if not np.all(np.isfinite(array)):
+        raise ConfigError(f"{name}: expected finite numbers, received NaN or infinite entries ({short_repr(value)})")
+    return array
+
+
+def check_shapes(mean_i: np.ndarray, cov_i: np.ndarray, mean_j: np.ndarray, cov_j: np.ndarray) -> int:
+    """The common dimension ``d`` of means ``(..., d)`` and covariances ``(..., d, d)``."""
+    if mean_i.ndim < 1 or mean_j.ndim < 1 or mean_i.shape[-1] != mean_j.shape[-1] or mean_i.shape[-1] < 1:
+        raise ConfigError(f"mean_i, mean_j: expected arrays (..., d) with the same d, received shapes {mean_i.shape} and {mean_j.shape}")
+    d = mean_i.shape[-1]
+    for name, cov in (("cov_i", cov_i), ("cov_j", cov_j)):
+        if cov.ndim < 2 or cov.shape[-2:] != (d, d):
+            raise ConfigError(f"{name}: expected an array (..., {d}, {d}) matching the means, received shape {cov.shape}")
+    return d
+
+
+def check_covariance(cov: np.ndarray, name: str) -> None:
+    """Refuse covariances that are not symmetric positive semi-definite (relative tolerance)."""
+    scale = max(float(np.abs(cov).max(initial=0.0)), 1e-300)
+    if not np.allclose(cov, np.swapaxes(cov, -1, -2), rtol=0.0, atol=1e-9 * scale):
+        raise ConfigError(f"{name}: expected symmetric covariance matrices, received {short_repr(cov.tolist())}")
+    if np.linalg.eigvalsh(cov).min(initial=0.0) < -1e-9 * scale:
+        raise ConfigError(f"{name}: expected positive semi-definite covariance matrices (eigenvalues ≥ 0), received {short_repr(cov.tolist())}")
 
 
 def separator_flat(mi: np.ndarray, ci: np.ndarray, mj: np.ndarray, cj: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -59,6 +59,7 @@ from .spec import Spec, TeamSpec, initial_layout
 
 RECORD_CELLS_MAX_ROBOTS = 64
 """Cells are recorded by default for fleets up to this size (``record_cells`` overrides)."""
+MPC_NO_MPC, MPC_SOLVED, MPC_FALLBACK, MPC_ARRIVED = -1, 0, 1, 2  # mpc_status codes (int8)
 CONTROL_WIDTH = {"single_integrator": 2, "double_integrator": 2, "unicycle": 2, "quadrotor": 4}
 """Inputs per model; the ``controls`` array is as wide as the widest team's (zero-padded)."""
 
@@ -401,6 +402,9 @@ class World:
         self.velocity = np.zeros((self.n, self.dim))
         self.deadlock = DeadlockParams(**spec.deadlock.model_dump())
         self.fallback_steps = 0
+        self.solve_steps = 0
+        self.has_mpc = any(t.model.controller == "mpc" for t in teams)
+        self.mpc_status = np.full(self.n, MPC_NO_MPC, np.int8)
 
     # -- set-up ---------------------------------------------------------------------------
     def detour_vertices(self, team: TeamSpec) -> np.ndarray | None:
@@ -509,6 +513,8 @@ class World:
         if g.mpc is not None:
             u, info = g.mpc.control(state_est, goal, cells.A, cells.b, cells.valid, arrived=g.arrived)
             self.fallback_steps += int(info["fallback"].sum())
+            self.solve_steps += int((~g.arrived).sum())
+            self.mpc_status[g.index] = np.where(g.arrived, MPC_ARRIVED, np.where(info["fallback"], MPC_FALLBACK, MPC_SOLVED))
             return u, no_empty
         working = g.rotation.working_goals(p_est, goal, g.arrived)
         if g.kind == "double_integrator":
@@ -540,7 +546,8 @@ class World:
 
     def counts(self) -> ControllerCounts:
         """The controllers' counters (deadlocks, MPC fallbacks; empty cells are counted from events)."""
-        return ControllerCounts(deadlock_detections=int(self.deadlock_counts().sum()), mpc_fallback_steps=self.fallback_steps)
+        return ControllerCounts(deadlock_detections=int(self.deadlock_counts().sum()), mpc_fallback_steps=self.fallback_steps,
+                               mpc_solve_steps=self.solve_steps)
 
     def metadata(self) -> dict:
         """What is needed to interpret the arrays (viz, metrics, replays), as plain JSON values."""
@@ -617,6 +624,8 @@ def simulate(spec: Spec, seed: int | None = None, progress: bool = False) -> Tra
     rec.step("estimates", (world.n, world.dim))
     rec.step("controls", (world.n, world.control_width))
     cell_log: list | None = [] if records_cells(spec, world) else None
+    if world.has_mpc:
+        rec.step("mpc_status", (world.n,), dtype=np.int8, fill=MPC_NO_MPC)
 
     def step(k: int) -> bool:
         estimates = rec["positions"][k] + world.position_noise(rng)
@@ -625,6 +634,8 @@ def simulate(spec: Spec, seed: int | None = None, progress: bool = False) -> Tra
             cells, controls, flags = world.decide(estimates, shift)
         world.advance(controls)
         rec.put(k, estimates=estimates, controls=controls)
+        if world.has_mpc:
+            rec.put(k, mpc_status=world.mpc_status)
         rec.put_state(k + 1, positions=world.positions())
         if world.has_headings:
             rec.put_state(k + 1, headings=world.headings())

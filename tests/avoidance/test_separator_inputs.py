@@ -1,0 +1,37 @@
+"""The public separator refuses what it cannot separate, naming the argument, instead of
+returning NaN or failing inside numpy."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from robofleet.avoidance import gaussian_separator
+from robofleet.core.errors import ConfigError
+
+I2 = np.eye(2) * 0.01
+
+
+@pytest.mark.parametrize(
+    ("args", "words"),
+    [
+        (([np.nan, 0.0], I2, [1.0, 0.0], I2), "mean_i: expected finite numbers"),
+        (([0.0, 0.0], I2, [np.inf, 0.0], I2), "mean_j: expected finite numbers"),
+        (([0.0, 0.0], [[1.0, 0.5], [0.0, 1.0]], [1.0, 0.0], I2), "cov_i: expected symmetric"),
+        (([0.0, 0.0], I2, [1.0, 0.0], [[1.0, 0.0], [0.0, -1.0]]), "cov_j: expected positive semi-definite"),
+        (([1.0, 2.0], I2, [1.0, 2.0], I2), "expected distinct means"),
+        (([0.0, 0.0], I2, [1.0, 0.0, 0.0], I2), "mean_i, mean_j: expected arrays (..., d) with the same d"),
+        (([0.0, 0.0], np.eye(3), [1.0, 0.0], I2), "cov_i: expected an array (..., 2, 2)"),
+        ((np.zeros((3, 2)), I2, np.ones((4, 2)), I2), "expected leading axes that broadcast"),
+        ((["a", "b"], I2, [1.0, 0.0], I2), "mean_i: expected an array of numbers"),
+    ],
+)
+def test_bad_arguments_are_config_errors_naming_the_argument(args, words):
+    with pytest.raises(ConfigError) as info:
+        gaussian_separator(*args)
+    assert words in str(info.value) and isinstance(info.value, ValueError)
+
+
+def test_valid_singular_covariances_still_separate():
+    a, b = gaussian_separator([0.0, 0.0], np.zeros((2, 2)), [2.0, 0.0], np.diag([0.0, 0.04]))
+    assert np.all(np.isfinite(a)) and np.isfinite(b) and a[0] > 0.99
