@@ -51,7 +51,7 @@ def run(model, params, dim, dt, horizon, n, steps, sigma, seed=0, **options):
     mpc = BuavcMPC(model, params, dim=dim, dt=dt, config=MPCConfig(horizon=horizon, **options), n_robots=n)
     cov = np.repeat((sigma**2 * np.eye(dim))[None], n, 0)
     q = confidence_quantile(0.1)
-    times, cpu, fallbacks = [], [], 0
+    times, cpu, fallbacks, in_cell, fallbacks_in_cell = [], [], 0, 0, 0
     for _ in range(steps):
         est = state[:, :dim] + rng.normal(scale=sigma, size=(n, dim))
         cells = build_cells(est, cov, np.full(n, 0.2), q, geometry, 2.0)
@@ -64,11 +64,15 @@ def run(model, params, dim, dt, horizon, n, steps, sigma, seed=0, **options):
             times.append(time.perf_counter() - t0)
             cpu.append(time.thread_time() - c0)
             fallbacks += u is None
+            inside = bool(np.all(A @ est[i] <= b))
+            in_cell += inside
+            fallbacks_in_cell += inside and u is None
             u = mpc.model.fallback(s_est[i:i + 1])[0] if u is None else u
             state[i] = state[i] + u * dt if model == "single_integrator" else quad.step(state[i:i + 1], u[None], dt, params)[0]
     t, c = np.array(times) * 1e3, np.array(cpu) * 1e3
     return {"median": np.median(t), "p95": np.percentile(t, 95), "cpu_median": np.median(c), "cpu_p95": np.percentile(c, 95),
-            "solves": len(t), "fallbacks": fallbacks}
+            "solves": len(t), "fallbacks": fallbacks,
+            "in_cell": in_cell, "fallbacks_in_cell": fallbacks_in_cell}
 
 
 def main():
@@ -86,6 +90,7 @@ def main():
     for label, model, params, dim, dt, horizon, n, target, options in rows:
         r = run(model, params, dim, dt, horizon, n, args.steps, 0.05 if dim == 3 else 0.1, seed=args.seed, **options)
         share = f"{100 * r['fallbacks'] / r['solves']:.1f}%"
+        share_in = f"{100 * r['fallbacks_in_cell'] / max(r['in_cell'], 1):.1f}%"
         print(f"{label:32s} {r['solves']:6d} {share:>8s} {r['median']:9.2f} {r['p95']:9.2f} {r['cpu_median']:8.2f} {r['cpu_p95']:8.2f} {target:7.1f}  {r['median'] / target:.2f}")
 
 

@@ -42,6 +42,8 @@ Example (3-D quadrotors, teams)::
 
 from __future__ import annotations
 
+import importlib.util
+
 from collections.abc import Sequence
 from typing import Any, Literal, Optional
 
@@ -191,6 +193,8 @@ class ModelSpec(SpecModel):
             raise ScenarioError("omega_max", "a number > 0 (required by model unicycle)", None)
         if self.kind == "quadrotor" and self.controller != "mpc":
             raise ScenarioError("controller", "'mpc' (the quadrotor has no one-step controller)", self.controller)
+        if self.controller == "mpc" and importlib.util.find_spec("casadi") is None:
+            raise ScenarioError("controller", "an installed casadi for controller 'mpc' (pip install 'robofleet[mpc]')", "mpc")
         return self
 
     @property

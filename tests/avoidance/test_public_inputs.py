@@ -1,5 +1,6 @@
-"""The public separator refuses what it cannot separate, naming the argument, instead of
-returning NaN or failing inside numpy."""
+"""Public inputs of the avoidance family: the separator refuses what it cannot separate,
+naming the argument, instead of returning NaN; an MPC scenario without casadi is refused
+at validation, naming the extra to install."""
 
 from __future__ import annotations
 
@@ -35,3 +36,15 @@ def test_bad_arguments_are_config_errors_naming_the_argument(args, words):
 def test_valid_singular_covariances_still_separate():
     a, b = gaussian_separator([0.0, 0.0], np.zeros((2, 2)), [2.0, 0.0], np.diag([0.0, 0.04]))
     assert np.all(np.isfinite(a)) and np.isfinite(b) and a[0] > 0.99
+
+
+def test_an_mpc_scenario_without_casadi_is_refused_at_validation_naming_the_extra(monkeypatch):
+    import importlib.util
+
+    import robofleet
+    from robofleet.core.errors import ScenarioError
+
+    real = importlib.util.find_spec
+    monkeypatch.setattr(importlib.util, "find_spec", lambda name, *a: None if name == "casadi" else real(name, *a))
+    with pytest.raises(ScenarioError, match=r"teams\.0\.model\.controller: expected an installed casadi .*robofleet\[mpc\]"):
+        robofleet.load_scenario("avoidance/quadrotors_3d")
