@@ -8,7 +8,7 @@ success with its Clopper–Pearson 95 % interval, the share of robots that arriv
 mean travel time over successful runs, contacts and the per-step contact rate's 95 %
 upper bound (next to δ). ``--liveness on|off|spec`` overrides the ``liveness:`` block.
 
-Run: ``python benchmarks/avoidance_liveness.py [--seeds 20] [--random 20] [--scenarios ten_boxes ...] [--liveness off]``
+Run: ``python benchmarks/avoidance_liveness.py [--seeds 20] [--random 20] [--scenarios ten_boxes ...] [--liveness off] [--budget-factor 4]``
 """
 
 from __future__ import annotations
@@ -48,17 +48,21 @@ def shipped_mappings(names: list[str] | None) -> dict[str, dict]:
     return out
 
 
-def with_liveness(mapping: dict, mode: str) -> dict:
-    """``mapping`` with its ``liveness`` block switched on/off (``spec`` keeps it)."""
-    if mode == "spec":
-        return mapping
-    return {**mapping, "liveness": {**mapping.get("liveness", {}), "enabled": mode == "on"}}
+def with_liveness(mapping: dict, mode: str, budget_factor: float = 1.0) -> dict:
+    """``mapping`` with its ``liveness`` block switched on/off (``spec`` keeps it) and its
+    step budget multiplied by ``budget_factor``."""
+    out = {**mapping, "max_steps": int(round(budget_factor * mapping.get("max_steps", 500)))}
+    if mode != "spec":
+        out["liveness"] = {**mapping.get("liveness", {}), "enabled": mode == "on"}
+    return out
 
 
 def run(mapping: dict, seed: int) -> dict:
     """The summary of one run (cells not recorded)."""
     spec = robofleet.load_scenario({**mapping, "record_cells": False})
-    return robofleet.simulate(spec, seed=seed).results
+    trace = robofleet.simulate(spec, seed=seed)
+    positions = trace.arrays["positions"]
+    return {**trace.results, "robot_steps": int(positions.shape[0] * positions.shape[1])}
 
 
 def summarise(label: str, results: list[dict], delta: float) -> str:
@@ -69,7 +73,7 @@ def summarise(label: str, results: list[dict], delta: float) -> str:
     arrived = np.mean([r["arrived"] for r in results])
     times = [r["mean_travel_time"] for r in results if r["success"]]
     contacts = sum(int(r["collision_steps"]) for r in results)
-    steps = sum(r.get("steps", 0) for r in results)
+    steps = sum(r["robot_steps"] for r in results)
     rate_hi = clopper_pearson(contacts, max(steps, 1))[1] if steps else float("nan")
     t = f"{np.mean(times):.1f}" if times else "—"
     return (f"| {label} | {n} | {100 * k / n:.0f} % [{100 * lo:.0f}, {100 * hi:.0f}] | {100 * arrived:.0f} % | {t} | "
@@ -83,17 +87,18 @@ def main() -> None:
     ap.add_argument("--random", type=int, default=20, help="random scenarios (seeds first-seed…)")
     ap.add_argument("--scenarios", nargs="*", default=None, help="shipped scenario names (default: all 2-D)")
     ap.add_argument("--liveness", choices=["on", "off", "spec"], default="spec")
+    ap.add_argument("--budget-factor", type=float, default=1.0, help="multiply every step budget (1 = as shipped)")
     args = ap.parse_args()
     print("| scenario | runs | success [CP 95 %] | arrived | mean travel time of successes [s] | contact steps | robot-step contact rate, 95 % upper |")
     print("|---|---:|---:|---:|---:|---:|---|")
     t0 = time.perf_counter()
     seeds = range(args.first_seed, args.first_seed + args.seeds)
     for name, mapping in shipped_mappings(args.scenarios).items():
-        m = with_liveness(mapping, args.liveness)
+        m = with_liveness(mapping, args.liveness, args.budget_factor)
         print(summarise(name, [run(m, s) for s in seeds], mapping.get("delta", 0.1)), flush=True)
     if args.random:
         rnd = range(args.first_seed, args.first_seed + args.random)
-        results = [run(with_liveness(random_scenario(s), args.liveness), s) for s in rnd]
+        results = [run(with_liveness(random_scenario(s), args.liveness, args.budget_factor), s) for s in rnd]
         print(summarise(f"random (seeds {rnd.start}–{rnd.stop - 1})", results, 0.1), flush=True)
     print(f"wall time: {time.perf_counter() - t0:.0f} s")
 

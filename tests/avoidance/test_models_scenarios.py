@@ -92,6 +92,13 @@ def test_heterogeneous_team_runs_without_collisions_at_zero_noise():
     # everybody made progress toward the goal
     goals = np.asarray(trace.metadata["goals"])
     assert np.all(np.linalg.norm(pos[-1] - goals, axis=1) < np.linalg.norm(pos[0] - goals, axis=1) - 1.0)
+    # the solver status of every robot-step: -1 without MPC, else 0 solved / 1 fallback / 2 arrived
+    status = trace.arrays["mpc_status"]
+    assert status.shape == (len(pos) - 1, len(ground)) and status.dtype == np.int8
+    assert np.all(status[:, ground] == -1) and np.all(np.isin(status[:, ~ground], [0, 1, 2]))
+    solved_for = np.isin(status, [0, 1]).sum()
+    assert summary["mpc_fallback_steps"] == (status == 1).sum()
+    assert summary["mpc_fallback_share"] == pytest.approx((status == 1).sum() / solved_for)
 
 
 def test_orca_method_runs_and_is_deterministic():

@@ -30,10 +30,14 @@ CASES = [
 ]
 
 
-@pytest.mark.parametrize("name,params,dim,dt,horizon,step,x0", CASES, ids=[c[0] for c in CASES])
-def test_mpc_keeps_every_stage_in_the_cell(name, params, dim, dt, horizon, step, x0):
+SOLVER_CASES = [(*case, "ipopt") for case in CASES] + [(*case, "rti") for case in CASES if case[0] in ("unicycle", "quadrotor")]
+
+
+@pytest.mark.parametrize("name,params,dim,dt,horizon,step,x0,solver", SOLVER_CASES, ids=[f"{c[0]}-{c[-1]}" for c in SOLVER_CASES])
+def test_mpc_keeps_every_stage_in_the_cell(name, params, dim, dt, horizon, step, x0, solver):
     A, b = corner_cell(dim)
-    mpc = BuavcMPC(name, params, dim=dim, dt=dt, config=MPCConfig(horizon=horizon, deadlock_progress=0.01), n_robots=1)
+    config = MPCConfig(horizon=horizon, deadlock_progress=0.01, solver=solver)
+    mpc = BuavcMPC(name, params, dim=dim, dt=dt, config=config, n_robots=1)
     goal = np.full((1, dim), 3.0)
     if dim == 3:
         goal[0, 2] = 2.0

@@ -50,7 +50,7 @@ class Cells:
 
     def contains(self, points: np.ndarray, tol: float = 1e-9) -> np.ndarray:
         """Whether each robot's point ``(N, d)`` lies in its own cell."""
-        return np.all(np.einsum("nmd,nd->nm", self.A, points) <= self.b + tol, axis=1)
+        return np.all(np.matmul(self.A, points[..., None])[..., 0] <= self.b + tol, axis=1)
 
     def robot(self, i: int) -> tuple[np.ndarray, np.ndarray]:
         """``(A, b)`` of robot i's valid constraints."""

@@ -31,6 +31,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .cell import Cells, Kind
+from .liveness import LivenessParams, ParkingState, parking_targets
 from .projection import project_onto_cells
 
 NORMAL, ROTATE, VERTEX = 0, 1, 2
@@ -58,6 +59,7 @@ class ControllerState:
     goal_dist_history: np.ndarray  # (window, N) ring buffer of estimated goal distances
     step: int = 0
     deadlocks: np.ndarray = field(default=None)
+    parking: ParkingState | None = None
 
     @classmethod
     def initial(cls, n: int, window: int) -> "ControllerState":
@@ -82,24 +84,34 @@ def single_integrator_control(
     goal_tolerance: float,
     deadlock: DeadlockParams,
     grown_obstacles: np.ndarray | None = None,
+    liveness: LivenessParams | None = None,
+    local_box: float = np.inf,
 ) -> tuple[np.ndarray, dict]:
     """Velocity commands ``(N, 2)`` for one control step; updates ``state`` in place.
 
     ``grown_obstacles`` holds ``(O, V, 2)`` vertices of the obstacles grown by ``r_s``
-    (padded by repetition), used by the obstacle branch of the heuristic.
+    (padded by repetition), used by the obstacle branch of the heuristic. With
+    ``liveness`` enabled, arrived robots yield to lingering neighbours
+    (:mod:`.liveness`); their targets are projected onto their cells like every other.
     Returns the commands and a dict with the projected goals, empty-cell mask and the
     robots newly detected in deadlock.
     """
     goal_dist = np.linalg.norm(goals - estimates, axis=1)
     state.arrived |= goal_dist <= goal_tolerance
     working_goal = _working_goal(estimates, goals, state)
+    moving_parked = np.zeros(len(goals), bool)
+    if liveness is not None and liveness.enabled:
+        if state.parking is None:
+            state.parking = ParkingState.initial(len(goals))
+        parked_target, moving_parked = parking_targets(estimates, goals, state.arrived, state.parking, liveness, local_box)
+        working_goal[state.arrived] = parked_target[state.arrived]
     proj = project_onto_cells(working_goal, cells)
     target = np.where(proj.empty[:, None], estimates, proj.point)
     delta = target - estimates
     dist = np.linalg.norm(delta, axis=1)
     speed = np.minimum(v_max, dist / dt)
     u = np.where(dist[:, None] > 1e-12, delta * (speed / np.maximum(dist, 1e-300))[:, None], 0.0)
-    u[state.arrived] = 0.0
+    u[state.arrived & ~moving_parked] = 0.0
     stuck = _detect_deadlock(goal_dist, np.where(proj.empty, np.inf, dist), state, v_max, dt, deadlock)
     if deadlock.enabled and stuck.any():
         _start_recovery(stuck, estimates, goals, cells, proj.active, state, deadlock, grown_obstacles)

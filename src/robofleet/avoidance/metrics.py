@@ -18,7 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..core import metrics
+from ..core import geometry, metrics
 from ..core.workspace import Workspace
 
 RESULTS: dict[str, str] = {
@@ -39,7 +39,16 @@ RESULTS: dict[str, str] = {
     "pair_rate": "share of robot pairs that collided at least once",
     "obstacle_step_rate": "colliding (robot, step) couples with obstacles over all couples",
     "run_collided": "whether any robot-robot or robot-obstacle contact happened in the run",
+    "close_pair_steps": "(pair, step) couples whose centres were closer than CLOSE_PAIR_DISTANCE = 1 m (initial state included)",
+    "close_pair_step_rate": "colliding (pair, step) couples among the close ones (centres under 1 m); null without close couples",
+    "estimate_in_cell_share": "share of robot-steps, of robots not yet arrived (steps before the arrival step), whose estimate lay in the robot's own cell when it was built (the premise of the chance constraint); null for ORCA",
+    "empty_cell_share": "share of robot-steps, of robots not yet arrived (steps before the arrival step), whose cell was empty; null for ORCA",
 }
+
+CLOSE_PAIR_DISTANCE = 1.0
+"""Centre distance in metres under which two robots count as a close pair at a step: the
+pair-steps where a collision is possible at all, so the rate among them is not diluted by
+far-apart pairs."""
 
 
 @dataclass(frozen=True)
@@ -98,6 +107,34 @@ def collision_frequencies(n_robots: int, n_frames: int, pair_contacts: int, coll
     }
 
 
+def close_pair_frequencies(positions: np.ndarray, radius: float, distance: float = CLOSE_PAIR_DISTANCE) -> dict:
+    """Contacts among close (pair, step) couples (centres under ``distance``) over a run ``(T, N, d)``.
+
+    The pooled ``pair_step_rate`` divides by all ``N(N−1)/2`` pairs, most of them far apart;
+    the rate among close couples compares methods where the chance constraint binds.
+    """
+    close = contacts = 0
+    for pts in positions:
+        pairs = geometry.close_pairs(pts, distance)
+        if len(pairs):
+            gaps = np.linalg.norm(pts[pairs[:, 0]] - pts[pairs[:, 1]], axis=1)
+            close += len(pairs)
+            contacts += int(np.count_nonzero(gaps < 2 * radius - metrics.CONTACT_TOL))
+    return {"close_pair_steps": int(close), "close_pair_step_rate": contacts / close if close else float("nan")}
+
+
+def premise_shares(estimate_in_cell: np.ndarray, empty_cell: np.ndarray, arrivals: np.ndarray) -> dict:
+    """Shares of the robot-steps ``(k, i)`` of robots not yet arrived (``k`` below the
+    arrival step, or every step for a robot that never arrived) whose estimate lay in its
+    cell, and whose cell was empty (``nan`` without such robot-steps)."""
+    steps = np.arange(len(estimate_in_cell))[:, None]
+    moving = (arrivals[None, :] < 0) | (steps < arrivals[None, :])
+    count = int(moving.sum())
+    if count == 0:
+        return {"estimate_in_cell_share": float("nan"), "empty_cell_share": float("nan")}
+    return {"estimate_in_cell_share": float(estimate_in_cell[moving].mean()), "empty_cell_share": float(empty_cell[moving].mean())}
+
+
 def run_results(
     positions: np.ndarray,
     goals: np.ndarray,
@@ -110,6 +147,7 @@ def run_results(
     step_seconds: np.ndarray,
     arrivals: np.ndarray,
     counts: ControllerCounts,
+    premise: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> dict:
     """Every per-run result of :data:`RESULTS` plus ``success``.
 
@@ -127,6 +165,9 @@ def run_results(
         Per-robot arrival steps decided by the controllers (``-1`` = never).
     counts:
         The controllers' counters.
+    premise:
+        The recorded ``estimate_in_cell`` and ``empty_cell`` ``(T, N)`` arrays, ``None``
+        for a method without cells (the shares are then ``nan``).
 
     ``success`` is: every robot arrived and nothing touched (robots or obstacles).
     """
@@ -147,4 +188,9 @@ def run_results(
                mpc_fallback_steps=counts.mpc_fallback_steps,
                mpc_fallback_share=counts.mpc_fallback_steps / counts.mpc_solve_steps if counts.mpc_solve_steps else None)
     out.update(collision_frequencies(positions.shape[1], len(positions), pair_contacts, out["collisions"], obstacle_hits))
+    out.update(close_pair_frequencies(positions, radius))
+    if premise is None:
+        out.update(estimate_in_cell_share=float("nan"), empty_cell_share=float("nan"))
+    else:
+        out.update(premise_shares(*premise, arrivals))
     return out

@@ -13,7 +13,8 @@ and applies ``u_0``. The problem is built **once** per (model, horizon, max cons
 the cell enters as parameters ``A (M × d)``, ``b (M)``; unused rows are padded with the
 always-true ``0·p ≤ 1``. Linear models (single and double integrator) are solved as a QP
 (qpOASES through casadi's ``qpsol``), nonlinear ones (unicycle, quadrotor) as an NLP with
-IPOPT (``nlpsol``), warm-started from the previous plan shifted by one step.
+IPOPT (``nlpsol``), warm-started from the previous plan shifted by one step, or, with
+``solver: rti``, by the real-time-iteration SQP of :mod:`.rti` (dense QPs, DAQP by default).
 
 The returned inputs are rolled out with the model's discrete step (the simulator's
 equations); when that rollout
@@ -33,9 +34,6 @@ the input sequence undetermined; the small weight selects the least-effort plan.
 from __future__ import annotations
 
 import contextlib
-import os
-import sys
-from collections.abc import Iterator
 from dataclasses import dataclass
 from typing import Callable, Literal
 
@@ -47,7 +45,9 @@ from ..dynamics import double_integrator as di
 from ..dynamics import quadrotor as quad
 from ..dynamics import unicycle as uni
 from ..core.config import SpecModel
+from ..core.output import quiet_stdout
 from .braking import braking_control
+from .rti import CondensedSQP
 
 ModelName = Literal["single_integrator", "double_integrator", "unicycle", "quadrotor"]
 MODEL_NAMES = ("single_integrator", "double_integrator", "unicycle", "quadrotor")
@@ -74,9 +74,11 @@ class MPCConfig(SpecModel):
     recover_steps: int = Field(10, gt=0, description="steps with the rotated goal")
     max_iter: int = Field(30, gt=0, description="IPOPT iteration cap (nonlinear models)")
     solver: Literal["ipopt", "rti"] = Field("ipopt", description="nonlinear models: 'ipopt' (full NLP) or 'rti' "
-                                            "(condensed Gauss-Newton SQP around the shifted plan, :mod:`.rti`)")
+                                            "(condensed Gauss-Newton SQP around the shifted plan, robofleet.avoidance.rti)")
     qp_solver: Literal["daqp", "qpoases", "osqp"] = Field("daqp", description="QP solver of the 'rti' path")
     sqp_iterations: int = Field(3, gt=0, description="most QPs per solve on the 'rti' path (1 = pure real-time iteration)")
+    terminal_speed: float | None = Field(None, gt=0, description="'rti' path, quadrotor: bound on each final velocity "
+                                         "component [m/s] (null = none)")
 
 
 class SingleIntegratorParams(SpecModel):
@@ -208,14 +210,16 @@ class BuavcMPC:
         for k in range(N):
             states.append(m.step(states[-1], us[:, k]))
         self._rollout = ca.Function("rollout", [xs, us], [ca.horzcat(*states)])
+        self._step = ca.Function("step", [xs, us[:, 0]], [m.step(xs, us[:, 0])])
         self._first_solve = True
         self._sqp = None
         if not m.linear and self.config.solver == "rti":
-            from .rti import CondensedSQP
 
             self._sqp = CondensedSQP(m.step, nx=m.nx, nu=m.nu, dim=m.dim, horizon=N, u_lo=m.u_lo, u_hi=m.u_hi,
                                      input_weight=self.config.input_weight, qp_solver=self.config.qp_solver,
-                                     iterations=self.config.sqp_iterations)
+                                     iterations=self.config.sqp_iterations,
+                                     terminal=slice(3, 6) if m.name == "quadrotor" else None,
+                                     terminal_bound=np.inf if self.config.terminal_speed is None else self.config.terminal_speed)
         elif m.linear:
             with quiet_stdout():  # qpOASES prints its licence banner on construction
                 self._solver = ca.qpsol("buavc_mpc", QP_SOLVER, problem, QP_OPTIONS[QP_SOLVER])
@@ -279,12 +283,24 @@ class BuavcMPC:
         m, N = self.model, self.config.horizon
         reference = z0[m.nx * (N + 1):].reshape(N, m.nu)
         U = self._sqp.solve(state, goal, A, b, reference, margin=CELL_MARGIN, tolerance=_CELL_TOL)
+        if U is None:  # second start: the braking manoeuvre, a linearization point that stops in time
+            U = self._sqp.solve(state, goal, A, b, self.fallback_inputs(state), margin=CELL_MARGIN, tolerance=_CELL_TOL)
         if U is None:
             self._warm[robot] = np.nan
             return None, None
         X = self.rollout(state, U)
         self._warm[robot] = np.concatenate([X.ravel(), U.ravel()])
         return U[0], X[:, : m.dim]
+
+    def fallback_inputs(self, state: np.ndarray) -> np.ndarray:
+        """Inputs ``(N, nu)`` of the model's safe fallback applied in closed loop from ``state``
+        over the horizon (the brake of the quadrotor, zero for the unicycle)."""
+        m, x = self.model, state
+        U = np.empty((self.config.horizon, m.nu))
+        for k in range(self.config.horizon):
+            U[k] = m.fallback(x[None])[0]
+            x = np.asarray(self._step(x, U[k])).ravel()
+        return U
 
     def rollout(self, state: np.ndarray, U: np.ndarray) -> np.ndarray:
         """States ``(N+1, nx)`` reached from ``state`` under the inputs ``U (N, nu)`` with the
@@ -370,21 +386,6 @@ class GoalRotation:
         rotating = self._left > 0
         self._left[rotating] -= 1
         return np.where(rotating[:, None], rotate_goal_clockwise(positions, goals), goals)
-
-
-@contextlib.contextmanager
-def quiet_stdout() -> Iterator[None]:
-    """Silence C-level writes to standard output (solver banners) for the duration."""
-    sys.stdout.flush()
-    saved = os.dup(1)
-    devnull = os.open(os.devnull, os.O_WRONLY)
-    try:
-        os.dup2(devnull, 1)
-        yield
-    finally:
-        os.dup2(saved, 1)
-        os.close(saved)
-        os.close(devnull)
 
 
 def rotate_goal_clockwise(positions: np.ndarray, goals: np.ndarray) -> np.ndarray:

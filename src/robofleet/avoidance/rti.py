@@ -33,6 +33,8 @@ from collections.abc import Callable
 
 import numpy as np
 
+from ..core.output import quiet_stdout
+
 QP_OPTIONS = {
     "qpoases": {"printLevel": "none", "error_on_fail": False, "sparse": False},
     "daqp": {"error_on_fail": False},
@@ -52,10 +54,16 @@ class CondensedSQP:
     input_weight : ``w_u``
     qp_solver : casadi ``conic`` plugin (one of :data:`QP_OPTIONS`)
     iterations : most QPs per solve (1 = the pure real-time iteration)
+    terminal, terminal_bound : state components ``x_N[terminal]`` kept within ``± terminal_bound``
+        (the quadrotor's final velocity: a robot that can stop inside its cell at the end of
+        the horizon keeps a feasible plan next step, the terminal-set argument of Mayne et al.
+        2000, "Constrained model predictive control: stability and optimality"); dropped for
+        the solve when the QP with it is infeasible
     """
 
     def __init__(self, step: Callable, *, nx: int, nu: int, dim: int, horizon: int, u_lo: np.ndarray, u_hi: np.ndarray,
-                 input_weight: float, qp_solver: str = "daqp", iterations: int = 3):
+                 input_weight: float, qp_solver: str = "daqp", iterations: int = 3, terminal: slice | None = None,
+                 terminal_bound: float = np.inf):
         import casadi as ca
 
         self.nx, self.nu, self.dim, self.N = nx, nu, dim, horizon
@@ -69,6 +77,9 @@ class CondensedSQP:
             states.append(x[:dim])
         positions = ca.vertcat(*states)  # (N·dim): p_1 … p_N, stage-major
         self._linearize = ca.Function("rti_linearize", [x0, u], [positions, ca.jacobian(positions, u)])
+        final = x[terminal] if terminal is not None else ca.SX(0, 1)
+        self._terminal = ca.Function("rti_terminal", [x0, u], [final, ca.jacobian(final, u)])
+        self.terminal_bound = terminal_bound
         self._solvers: dict[int, object] = {}
 
     def _qp(self, rows: int):
@@ -78,9 +89,7 @@ class CondensedSQP:
         if rows not in self._solvers:
             n = self.nu * self.N
             spec = {"h": ca.Sparsity.dense(n, n), "a": ca.Sparsity.dense(rows, n)}
-            from .mpc import quiet_stdout  # qpOASES prints its licence banner on construction
-
-            with quiet_stdout():
+            with quiet_stdout():  # qpOASES prints its licence banner on construction
                 self._solvers[rows] = ca.conic("rti_qp", self.qp_solver, spec, QP_OPTIONS[self.qp_solver])
         return self._solvers[rows]
 
@@ -94,10 +103,15 @@ class CondensedSQP:
         u = np.clip(reference.ravel(), self.u_lo, self.u_hi)
         scale = max(float(np.sum((goal - state[: self.dim]) ** 2)), 1.0)
         best = u.copy() if self._in_cell(state, u, A, b + tolerance) else None  # the shifted plan itself is a valid plan
+        terminal = np.isfinite(self.terminal_bound)
         for _ in range(self.iterations):
             p_ref, J = (np.asarray(v) for v in self._linearize(state, u))
             p_ref = p_ref.ravel()
-            delta = self._increment(u, p_ref, J, goal, A, b - margin, scale)
+            extra = self._terminal_rows(state, u) if terminal else None
+            delta = self._increment(u, p_ref, J, goal, A, b - margin, scale, extra)
+            if delta is None and terminal:
+                terminal = False
+                delta = self._increment(u, p_ref, J, goal, A, b - margin, scale, None)
             if delta is None:
                 break
             u = np.clip(u + delta, self.u_lo, self.u_hi)
@@ -112,8 +126,14 @@ class CondensedSQP:
         positions = np.asarray(self._linearize(state, u)[0]).reshape(self.N, self.dim)
         return bool(np.all(positions @ A.T <= b))
 
+    def _terminal_rows(self, state: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Linearized ``|x_N[terminal]| ≤ bound`` as rows ``G δ ≤ h``."""
+        value, jac = (np.asarray(v) for v in self._terminal(state, u))
+        value = value.ravel()
+        return np.vstack([jac, -jac]), np.concatenate([self.terminal_bound - value, self.terminal_bound + value])
+
     def _increment(self, u: np.ndarray, p_ref: np.ndarray, J: np.ndarray, goal: np.ndarray, A: np.ndarray, b: np.ndarray,
-                   scale: float) -> np.ndarray | None:
+                   scale: float, extra: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray | None:
         """The QP step ``δ`` of the module docstring, or ``None`` when the QP solver fails."""
         d, N = self.dim, self.N
         J_N = J[(N - 1) * d:]
@@ -123,6 +143,8 @@ class CondensedSQP:
         # A_k J_k for every stage k, stacked: (N·M, nu·N)
         rows = np.einsum("md,kdn->kmn", A, J.reshape(N, d, -1)).reshape(N * len(A), -1)
         upper = (b[None, :] - p_ref.reshape(N, d) @ A.T).ravel()
+        if extra is not None:
+            rows, upper = np.vstack([rows, extra[0]]), np.concatenate([upper, extra[1]])
         if len(upper) == 0:
             rows, upper = np.zeros((1, len(u))), np.ones(1)
         solver = self._qp(len(upper))

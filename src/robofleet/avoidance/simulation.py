@@ -47,8 +47,9 @@ from ..dynamics import unicycle as uni
 from .braking import braking_control, braking_rule
 from .buffer import buffer, confidence_quantile, shadow_epsilon
 from .cell import CellGeometry, Cells, Kind, build_cells
-from .cell3d import box_shadow_planes, workspace_box_planes
+from .cell3d import box_shadow_planes, project_onto_polytope, workspace_box_planes
 from .controller import ControllerState, DeadlockParams, single_integrator_control
+from .liveness import LivenessParams
 from .diff_drive import three_projection_control
 from .metrics import ControllerCounts, run_results
 from .mpc import BuavcMPC, GoalRotation, SingleIntegratorParams
@@ -146,12 +147,14 @@ def noise_factor(cov: np.ndarray) -> np.ndarray:
 def team_noise_factor(team: TeamSpec, dim: int) -> np.ndarray:
     """``L`` with ``L Lᵀ`` = :func:`team_covariance` (3-D: ``σ diag(1, 1, 1 or 0)`` exactly)."""
     if dim == 2:
-        return noise_factor(team.covariance())
+        cov = team.covariance()
+        return noise_factor(cov) if cov.ndim == 2 else np.stack([noise_factor(c) for c in cov])
     return team.sigma * np.diag([1.0, 1.0, 1.0 if team.flying else 0.0])
 
 
 def team_covariance(team: TeamSpec, dim: int) -> np.ndarray:
-    """The ``(dim, dim)`` covariance of a team's position estimates: Σ in 2-D; in 3-D
+    """The ``(dim, dim)`` covariance of a team's position estimates: Σ in 2-D (``(n, 2, 2)``
+    when its robots have their own); in 3-D
     ``σ² I`` for quadrotors and ``σ² diag(1, 1, 0)`` for ground robots (no z noise)."""
     if dim == 2:
         return team.covariance()
@@ -225,7 +228,7 @@ def cell_model(spec: Spec, setup: MethodSetup) -> CellModel:
     the separators take the shared-covariance closed form)."""
     teams, slices, dim = spec.team_specs(), spec.team_slices(), spec.dim
     n = slices[-1].stop
-    if len(teams) == 1:
+    if len(teams) == 1:  # one team: a broadcast Σ unless the robots have their own
         covs = np.broadcast_to(setup.cell_covariance(team_covariance(teams[0], dim)), (n, dim, dim))
     else:
         covs = np.empty((n, dim, dim))
@@ -264,6 +267,22 @@ def ground_section(cells: Cells, z: float) -> Cells:
     A = np.where(flat[..., None], 0.0, a_xy / np.where(flat, 1.0, norm)[..., None])
     b = np.where(flat, np.where(b >= 0, 1.0, b), b / np.where(flat, 1.0, norm))
     return Cells(A, np.where(keep, b, 1.0), keep, cells.kind, cells.source)
+
+
+def empty_cells(cells: Cells, points: np.ndarray, inside: np.ndarray) -> np.ndarray:
+    """Which cells are empty: none that holds its robot's ``points`` (``inside``); the
+    others by an exact projection onto the cell (2-D, :func:`project_onto_cells`; 3-D,
+    :func:`~.cell3d.project_onto_polytope`), which reports infeasibility."""
+    empty = np.zeros(len(points), bool)
+    out = np.flatnonzero(~inside)
+    if len(out) == 0:
+        return empty
+    A, b, valid = cells.A[out], cells.b[out], cells.valid[out]
+    if points.shape[1] == 2:
+        empty[out] = project_onto_cells(points[out], Cells(A, b, valid, cells.kind[out], cells.source[out])).empty
+    else:
+        empty[out] = ~project_onto_polytope(points[out], A, b, valid)[1]
+    return empty
 
 
 def project_2d(points: np.ndarray, A: np.ndarray, b: np.ndarray, valid: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -364,10 +383,17 @@ def make_group(spec: Spec, team: TeamSpec, index: slice, starts: np.ndarray, goa
 
 @dataclass(frozen=True)
 class StepFlags:
-    """Robots newly detected in deadlock and robots (not arrived) whose cell was empty, this step."""
+    """Robots newly detected in deadlock and robots (not arrived) whose cell was empty, this
+    step; and, for every robot, whether its estimate lay in its own cell when the cell was
+    built (the premise of the chance constraint, Sec. 4; ``None`` until
+    :meth:`World.measure_premise`) and whether the cell was empty (``reported``: whether the
+    controller found that out itself)."""
 
     deadlocked: np.ndarray
     empty: np.ndarray
+    estimate_in_cell: np.ndarray | None
+    cell_empty: np.ndarray
+    reported: np.ndarray
 
 
 # ---------------------------------------------------------------------------------------
@@ -401,6 +427,7 @@ class World:
         self.control_width = max(CONTROL_WIDTH[t.model.kind] for t in teams)
         self.velocity = np.zeros((self.n, self.dim))
         self.deadlock = DeadlockParams(**spec.deadlock.model_dump())
+        self.liveness = LivenessParams(**spec.liveness.model_dump())
         self.fallback_steps = 0
         self.solve_steps = 0
         self.has_mpc = any(t.model.controller == "mpc" for t in teams)
@@ -420,7 +447,7 @@ class World:
 
     def position_noise_factor(self, teams: tuple[TeamSpec, ...], slices: list[slice]) -> np.ndarray:
         """``L`` with ``L Lᵀ = Σ``: one ``(d, d)`` factor for one team, else ``(N, d, d)``."""
-        if len(teams) == 1:
+        if len(teams) == 1:  # (d, d) shared, or (N, d, d) per robot
             return team_noise_factor(teams[0], self.dim)
         factors = np.empty((self.n, self.dim, self.dim))
         for team, sl in zip(teams, slices):
@@ -481,31 +508,52 @@ class World:
     def decide(self, estimates: np.ndarray, obstacle_shift: np.ndarray) -> tuple[Cells | None, np.ndarray, StepFlags]:
         """Every robot's cell and input for this step: ``(cells, controls (N, width), flags)``."""
         before = self.deadlock_counts().copy()
-        empty = np.zeros(self.n, bool)
+        empty, reported = np.zeros(self.n, bool), np.ones(self.n, bool)
         if self.cell_model is None:
             cells, u = None, self.orca_control(estimates)
         else:
             cells = self.cell_model.cells(estimates, obstacle_shift)
             u = np.zeros((self.n, self.control_width))
             for g in self.groups:
-                control, empty[g.index] = self.team_control(g, estimates, self.team_cells(cells, g))
+                control, team_empty = self.team_control(g, estimates, self.team_cells(cells, g))
+                if team_empty is None:
+                    reported[g.index] = False
+                else:
+                    empty[g.index] = team_empty
                 u[g.index, : control.shape[1]] = control
-        return cells, u, StepFlags(self.deadlock_counts() > before, empty & ~self.arrived())
+        return cells, u, StepFlags(self.deadlock_counts() > before, empty & ~self.arrived(), None, empty, reported)
+
+    def measure_premise(self, cells: Cells | None, estimates: np.ndarray, flags: StepFlags) -> StepFlags:
+        """``flags`` completed with whether each estimate lay in its own cell (the premise of
+        the chance constraint) and, where the controller did not report it, whether the
+        cell was empty (:func:`empty_cells`). Instrumentation, kept out of the timed step;
+        all False for ORCA, which builds no cells."""
+        inside, empty = np.zeros(self.n, bool), flags.cell_empty.copy()
+        if cells is None:
+            return replace(flags, estimate_in_cell=inside)
+        for g in self.groups:
+            rows, p_est = self.team_cells(cells, g), estimates[g.index, : g.plane_dim]
+            inside[g.index] = rows.contains(p_est)
+            unknown = ~flags.reported[g.index]
+            if unknown.any():
+                empty[g.index] = np.where(unknown, empty_cells(rows, p_est, inside[g.index]), empty[g.index])
+        return StepFlags(flags.deadlocked, empty & ~self.arrived(), inside, empty, flags.reported)
 
     def team_cells(self, cells: Cells, g: Group) -> Cells:
         """A team's cells (their section with the ground plane for ground robots in 3-D)."""
         rows = team_rows(cells, g.index)
         return ground_section(rows, g.z) if (self.dim == 3 and not g.flying) else rows
 
-    def team_control(self, g: Group, estimates: np.ndarray, cells: Cells) -> tuple[np.ndarray, np.ndarray]:
-        """Inputs of one team and its robots whose cell was empty."""
+    def team_control(self, g: Group, estimates: np.ndarray, cells: Cells) -> tuple[np.ndarray, np.ndarray | None]:
+        """Inputs of one team and its robots whose cell was empty (``None`` when the
+        controller does not find out; :func:`empty_cells` then decides)."""
         spec, dt = self.spec, self.dt
         p_est = estimates[g.index, : g.plane_dim]
         goal = self.goals[g.index, : g.plane_dim]
-        no_empty = np.zeros(len(p_est), bool)
         if g.si_state is not None:
             u, info = single_integrator_control(p_est, goal, cells, g.si_state, v_max=g.v_max, dt=dt, goal_tolerance=spec.goal_tolerance,
-                                                deadlock=self.deadlock, grown_obstacles=g.grown)
+                                                deadlock=self.deadlock, grown_obstacles=g.grown,
+                                                liveness=self.liveness, local_box=spec.local_box)
             return u, info["empty"]
         g.arrived |= np.linalg.norm(goal - p_est, axis=1) <= spec.goal_tolerance
         state_est = g.state.copy()
@@ -515,7 +563,7 @@ class World:
             self.fallback_steps += int(info["fallback"].sum())
             self.solve_steps += int((~g.arrived).sum())
             self.mpc_status[g.index] = np.where(g.arrived, MPC_ARRIVED, np.where(info["fallback"], MPC_FALLBACK, MPC_SOLVED))
-            return u, no_empty
+            return u, None
         working = g.rotation.working_goals(p_est, goal, g.arrived)
         if g.kind == "double_integrator":
             proj = project_onto_cells(working, cells)
@@ -523,7 +571,7 @@ class World:
             u, _ = braking_rule(p_est, g.state[:, 2:], target, cells.A, cells.b, cells.valid, g.params, dt)
             return np.where(g.arrived[:, None], braking_control(g.state[:, 2:], g.params.a_max, dt), u), proj.empty
         u = three_projection_control(state_est, working, cells.A, cells.b, cells.valid, g.params, dt, project=project_2d)
-        return np.where(g.arrived[:, None], 0.0, u), no_empty
+        return np.where(g.arrived[:, None], 0.0, u), None
 
     def orca_control(self, estimates: np.ndarray) -> np.ndarray:
         """ORCA velocities (van den Berg et al. 2011) for all robots, preferring the goal at
@@ -554,7 +602,7 @@ class World:
         spec, teams = self.spec, self.spec.team_specs()
         covs = [team_covariance(t, self.dim) for t in teams]
         per_robot = lambda values: [v for t, v in zip(teams, values) for _ in range(t.n)]  # noqa: E731
-        shared = self.dim == 2 and all(np.array_equal(c, covs[0]) for c in covs)
+        shared = self.dim == 2 and covs[0].ndim == 2 and all(np.array_equal(c, covs[0]) for c in covs)
         return to_plain({
             "method": spec.method, "dt": spec.dt, "radius": spec.robots.radius, "goals": self.goals, "starts": self.starts,
             "goal_tolerance": spec.goal_tolerance, "delta": spec.delta, "local_box": spec.local_box, "dim": self.dim,
@@ -608,8 +656,13 @@ def simulate(spec: Spec, seed: int | None = None, progress: bool = False) -> Tra
         Arrays ``positions (T+1, N, d)`` true positions, ``estimates (T, N, d)``,
         ``controls (T, N, w)`` (zero-padded to the widest team's inputs), ``headings
         (T+1, N)`` when a team has headings (NaN for the others), ``step_seconds (T,)``
-        (cells + controllers of the whole fleet), ``arrival_steps (N,)``; 2-D runs with
-        cells record ``cell_A``/``cell_b`` (default for N ≤ 64). Events ``arrived``,
+        (cells + controllers of the whole fleet), ``arrival_steps (N,)``, the boolean
+        ``estimate_in_cell (T, N)`` (the estimate lay in the robot's own cell when it was
+        built, before the controller: the premise of the chance constraint) and
+        ``empty_cell (T, N)`` (the cell was empty; both all-False for ORCA, which builds
+        no cells); 2-D runs with
+        cells record ``cell_A``/``cell_b`` (default for N ≤ 64); runs with an MPC team record
+        ``mpc_status (T, N)`` int8 (0 solved, 1 fallback, 2 arrived and holding, −1 no MPC). Events ``arrived``,
         ``deadlock``, ``empty_cell``. Results: :data:`~robofleet.avoidance.metrics.RESULTS`. Metadata
         ``loop_seconds``: the step loop's wall time alone (without the set-up and the
         per-run results).
@@ -623,6 +676,8 @@ def simulate(spec: Spec, seed: int | None = None, progress: bool = False) -> Tra
         rec.state("headings", (world.n,), initial=world.headings())
     rec.step("estimates", (world.n, world.dim))
     rec.step("controls", (world.n, world.control_width))
+    rec.step("estimate_in_cell", (world.n,), dtype=bool, fill=False)
+    rec.step("empty_cell", (world.n,), dtype=bool, fill=False)
     cell_log: list | None = [] if records_cells(spec, world) else None
     if world.has_mpc:
         rec.step("mpc_status", (world.n,), dtype=np.int8, fill=MPC_NO_MPC)
@@ -632,8 +687,9 @@ def simulate(spec: Spec, seed: int | None = None, progress: bool = False) -> Tra
         shift = world.obstacle_shift(rng)
         with rec.timed(k):
             cells, controls, flags = world.decide(estimates, shift)
+        flags = world.measure_premise(cells, estimates, flags)
         world.advance(controls)
-        rec.put(k, estimates=estimates, controls=controls)
+        rec.put(k, estimates=estimates, controls=controls, estimate_in_cell=flags.estimate_in_cell, empty_cell=flags.cell_empty)
         if world.has_mpc:
             rec.put(k, mpc_status=world.mpc_status)
         rec.put_state(k + 1, positions=world.positions())
@@ -655,6 +711,7 @@ def simulate(spec: Spec, seed: int | None = None, progress: bool = False) -> Tra
     counts = replace(world.counts(), empty_cell_steps=sum(e["kind"] == "empty_cell" for e in rec.events))
     results = run_results(arrays["positions"], world.goals, radius=spec.robots.radius, dt=spec.dt, goal_tolerance=spec.goal_tolerance,
                           workspace=workspace, boxes=spec.space3d.box_arrays() if spec.space3d is not None else None,
-                          step_seconds=arrays["step_seconds"], arrivals=arrays["arrival_steps"], counts=counts)
+                          step_seconds=arrays["step_seconds"], arrivals=arrays["arrival_steps"], counts=counts,
+                          premise=None if world.cell_model is None else (arrays["estimate_in_cell"], arrays["empty_cell"]))
     metadata = {**world.metadata(), "loop_seconds": loop_seconds}
     return rec.trace("avoidance", scenario=spec.scenario_name, seed=seed, metadata=metadata, results=results, workspace=workspace)

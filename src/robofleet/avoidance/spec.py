@@ -115,6 +115,44 @@ def checked_covariance(value: Any) -> np.ndarray:
     return cov
 
 
+def checked_robot_covariances(value: Any) -> list:
+    """``robots.cov`` / ``teams.k.cov``: one 2×2 matrix shared by the robots, or a list of
+    one matrix per robot, each symmetric PSD (the error names the robot index)."""
+    if not per_robot(value):
+        return checked_covariance(value).tolist()
+    out = []
+    for i, matrix in enumerate(value):
+        try:
+            out.append(checked_covariance(matrix).tolist())
+        except ScenarioError as exc:
+            raise ScenarioError(str(i), f"{exc.expected} for robot {i}", matrix) from None
+    return out
+
+
+def per_robot(value: Any) -> bool:
+    """Whether a ``cov`` value lists one matrix per robot (its entries' rows are lists)."""
+    return isinstance(value, (list, tuple)) and len(value) > 0 and all(
+        isinstance(m, (list, tuple)) and len(m) > 0 and isinstance(m[0], (list, tuple)) for m in value)
+
+
+def robot_covariances(cov: Optional[list], sigma: float, n: int) -> np.ndarray:
+    """Σ of the robots' planar estimates: ``(2, 2)`` when all robots share it (σ² I, one
+    matrix, or a per-robot list of equal matrices, so the shared closed form applies),
+    else ``(n, 2, 2)``, one per robot."""
+    if cov is None:
+        return sigma**2 * np.eye(2)
+    covs = np.asarray(cov, float)
+    if covs.ndim == 3 and np.all(covs == covs[0]):
+        return covs[0].copy()
+    return covs
+
+
+def check_covariance_count(field: str, cov: Optional[list], n: int) -> None:
+    """A per-robot ``cov`` list has one matrix per robot."""
+    if cov is not None and per_robot(cov) and len(cov) != n:
+        raise ScenarioError(field, f"one 2×2 matrix, or {n} matrices (one per robot)", f"{len(cov)} matrices")
+
+
 class Box3DSpec(SpecModel):
     """A box obstacle ``size`` at ``center`` rotated by ``yaw`` about z."""
 
@@ -250,52 +288,66 @@ class LayoutSpec(TeamLayoutSpec):
 
 class TeamSpec(SpecModel):
     """A group of identical robots (one model, one controller); all teams share
-    ``robots.radius``. Localisation noise Σ = ``cov`` (2-D only) or ``sigma``\\ ² I."""
+    ``robots.radius``. Localisation noise Σ = ``cov`` (2-D only; one matrix, or a list of
+    one per robot) or ``sigma``\\ ² I."""
 
     name: str = ""
     model: ModelSpec = Field(default_factory=ModelSpec)
     n: int = Field(1, ge=1, le=1_000_000)
     v_max: float = Field(0.4, gt=0)
     sigma: float = Field(0.0, ge=0)
-    cov: Optional[list[list[float]]] = None
+    cov: Optional[list] = None
     layout: TeamLayoutSpec = Field(default_factory=TeamLayoutSpec)
 
     @field_validator("cov")
     @classmethod
     def _cov(cls, value):
-        return None if value is None else checked_covariance(value).tolist()
+        return None if value is None else checked_robot_covariances(value)
+
+    @model_validator(mode="after")
+    def _cov_count(self):
+        check_covariance_count("cov", self.cov, self.n)
+        return self
 
     @property
     def flying(self) -> bool:
         return self.model.kind == "quadrotor"
 
     def covariance(self) -> np.ndarray:
-        """Σ ``(2, 2)`` of each robot's planar position estimate."""
-        return np.asarray(self.cov, float) if self.cov is not None else self.sigma**2 * np.eye(2)
+        """Σ of the planar position estimates: ``(2, 2)`` shared, or ``(n, 2, 2)`` per robot
+        (:func:`robot_covariances`)."""
+        return robot_covariances(self.cov, self.sigma, self.n)
 
     def largest_sigma(self) -> float:
-        """The largest standard deviation of Σ (``√λ_max``)."""
+        """The largest standard deviation of Σ (``√λ_max``, over all robots)."""
         return float(np.sqrt(max(np.linalg.eigvalsh(self.covariance()).max(), 0.0)))
 
 
 class RobotsSpec(SpecModel):
     """The ``robots:`` block: the shared safety radius r_s, and (short form) one 2-D team:
-    count, speed limit, localisation covariance Σ and layout."""
+    count, speed limit, localisation covariance Σ (``cov``: one 2×2 matrix, or a list of
+    one per robot; else ``sigma``\\ ² I) and layout."""
 
     n: int = Field(5, ge=1, le=1_000_000)
     radius: float = Field(0.2, gt=0)
     v_max: float = Field(0.4, gt=0)
     sigma: float = Field(0.1, ge=0)
-    cov: Optional[list[list[float]]] = None
+    cov: Optional[list] = None
     layout: LayoutSpec = Field(default_factory=LayoutSpec)
 
     @field_validator("cov")
     @classmethod
     def _cov(cls, value):
-        return None if value is None else checked_covariance(value).tolist()
+        return None if value is None else checked_robot_covariances(value)
+
+    @model_validator(mode="after")
+    def _cov_count(self):
+        check_covariance_count("cov", self.cov, self.n)
+        return self
 
     def covariance(self) -> np.ndarray:
-        return np.asarray(self.cov, float) if self.cov is not None else self.sigma**2 * np.eye(2)
+        """Σ: ``(2, 2)`` shared, or ``(n, 2, 2)`` per robot (:func:`robot_covariances`)."""
+        return robot_covariances(self.cov, self.sigma, self.n)
 
 
 class DeadlockSpec(SpecModel):
@@ -305,6 +357,17 @@ class DeadlockSpec(SpecModel):
     window: int = Field(20, ge=1)
     progress_fraction: float = Field(0.25, gt=0, lt=1)
     recover_steps: int = Field(10, ge=1)
+
+
+class LivenessSpec(SpecModel):
+    """Parked robots that yield to lingering neighbours (single integrators; see
+    :mod:`robofleet.avoidance.liveness`). Off by default: the paper's robots hold."""
+
+    enabled: bool = False
+    near: float = Field(1.0, gt=0)
+    linger_steps: int = Field(30, ge=1)
+    aside: float = Field(0.6, ge=0)
+    yield_steps: int = Field(25, ge=1)
 
 
 # ---------------------------------------------------------------------------------------
@@ -326,6 +389,7 @@ class Spec(SpecModel):
     workspace: AvoidanceWorkspaceSpec = Field(default_factory=AvoidanceWorkspaceSpec)
     robots: RobotsSpec = Field(default_factory=RobotsSpec)
     deadlock: DeadlockSpec = Field(default_factory=DeadlockSpec)
+    liveness: LivenessSpec = Field(default_factory=LivenessSpec)
     record_cells: Optional[bool] = None
     model: ModelSpec = Field(default_factory=ModelSpec)
     orca: OrcaParams = Field(default_factory=OrcaParams)
