@@ -286,54 +286,14 @@ class LayoutSpec(TeamLayoutSpec):
         return self
 
 
-class TeamSpec(SpecModel):
-    """A group of identical robots (one model, one controller); all teams share
-    ``robots.radius``. Localisation noise Σ = ``cov`` (2-D only; one matrix, or a list of
-    one per robot) or ``sigma``\\ ² I."""
+class PlanarNoise(SpecModel):
+    """What the ``robots:`` block and every ``teams:`` entry share: the count ``n`` and the
+    localisation covariance of the planar estimates — ``cov`` (one 2×2 matrix, or a list
+    of one per robot, each checked) or else ``sigma``\\ ² I."""
 
-    name: str = ""
-    model: ModelSpec = Field(default_factory=ModelSpec)
     n: int = Field(1, ge=1, le=1_000_000)
-    v_max: float = Field(0.4, gt=0)
     sigma: float = Field(0.0, ge=0)
     cov: Optional[list] = None
-    layout: TeamLayoutSpec = Field(default_factory=TeamLayoutSpec)
-
-    @field_validator("cov")
-    @classmethod
-    def _cov(cls, value):
-        return None if value is None else checked_robot_covariances(value)
-
-    @model_validator(mode="after")
-    def _cov_count(self):
-        check_covariance_count("cov", self.cov, self.n)
-        return self
-
-    @property
-    def flying(self) -> bool:
-        return self.model.kind == "quadrotor"
-
-    def covariance(self) -> np.ndarray:
-        """Σ of the planar position estimates: ``(2, 2)`` shared, or ``(n, 2, 2)`` per robot
-        (:func:`robot_covariances`)."""
-        return robot_covariances(self.cov, self.sigma, self.n)
-
-    def largest_sigma(self) -> float:
-        """The largest standard deviation of Σ (``√λ_max``, over all robots)."""
-        return float(np.sqrt(max(np.linalg.eigvalsh(self.covariance()).max(), 0.0)))
-
-
-class RobotsSpec(SpecModel):
-    """The ``robots:`` block: the shared safety radius r_s, and (short form) one 2-D team:
-    count, speed limit, localisation covariance Σ (``cov``: one 2×2 matrix, or a list of
-    one per robot; else ``sigma``\\ ² I) and layout."""
-
-    n: int = Field(5, ge=1, le=1_000_000)
-    radius: float = Field(0.2, gt=0)
-    v_max: float = Field(0.4, gt=0)
-    sigma: float = Field(0.1, ge=0)
-    cov: Optional[list] = None
-    layout: LayoutSpec = Field(default_factory=LayoutSpec)
 
     @field_validator("cov")
     @classmethod
@@ -348,6 +308,39 @@ class RobotsSpec(SpecModel):
     def covariance(self) -> np.ndarray:
         """Σ: ``(2, 2)`` shared, or ``(n, 2, 2)`` per robot (:func:`robot_covariances`)."""
         return robot_covariances(self.cov, self.sigma, self.n)
+
+    def largest_sigma(self) -> float:
+        """The largest standard deviation of Σ (``√λ_max``, over all robots)."""
+        return float(np.sqrt(max(np.linalg.eigvalsh(self.covariance()).max(), 0.0)))
+
+
+class TeamSpec(PlanarNoise):
+    """A group of identical robots (one model, one controller); all teams share
+    ``robots.radius``. Localisation noise Σ = ``cov`` (2-D only; one matrix, or a list of
+    one per robot) or ``sigma``\\ ² I."""
+
+    name: str = ""
+    model: ModelSpec = Field(default_factory=ModelSpec)
+    n: int = Field(1, ge=1, le=1_000_000)
+    v_max: float = Field(0.4, gt=0)
+    sigma: float = Field(0.0, ge=0)
+    layout: TeamLayoutSpec = Field(default_factory=TeamLayoutSpec)
+
+    @property
+    def flying(self) -> bool:
+        return self.model.kind == "quadrotor"
+
+
+class RobotsSpec(PlanarNoise):
+    """The ``robots:`` block: the shared safety radius r_s, and (short form) one 2-D team:
+    count, speed limit, localisation covariance Σ (``cov``: one 2×2 matrix, or a list of
+    one per robot; else ``sigma``\\ ² I) and layout."""
+
+    n: int = Field(5, ge=1, le=1_000_000)
+    radius: float = Field(0.2, gt=0)
+    v_max: float = Field(0.4, gt=0)
+    sigma: float = Field(0.1, ge=0)
+    layout: LayoutSpec = Field(default_factory=LayoutSpec)
 
 
 class DeadlockSpec(SpecModel):
