@@ -48,3 +48,21 @@ def test_undocumented_summary_keys_fail(toy_family, monkeypatch):
 def test_a_missing_figures_module_fails(toy_family):
     with pytest.raises(Exception, match="no_such_module"):
         check_scenario(TOY, figures=True)
+
+
+def test_declarations_and_budgets_refuse_what_the_driver_cannot_run():
+    from robofleet.core.errors import ConfigError
+    from robofleet.experiments import Budget, Reproduction, reproduce
+    from robofleet.experiments.reproductions import REPRODUCTIONS
+
+    for seeds in (0, -1, 1.5, True):
+        with pytest.raises(ConfigError, match="Budget: seeds"):
+            Budget(seeds=seeds)
+    base = REPRODUCTIONS["buavc"]
+    with pytest.raises(ConfigError, match="seed_shares"):
+        Reproduction(**{**base.__dict__, "seed_shares": {"buavc_noise": 1.5}})
+    with pytest.raises(ConfigError, match="seed_shares"):
+        Reproduction(**{**base.__dict__, "seed_shares": {"no_such_sweep": 0.5}})
+    with pytest.raises(ConfigError, match="--seeds"):
+        reproduce(base, budget="smallest", seeds=0, executor="serial", progress=False)
+    assert base.sweep_mapping("buavc_noise", base.budgets["smallest"], seeds=np.int64(2))["seeds"] == 2

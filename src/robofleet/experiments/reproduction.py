@@ -22,6 +22,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable, Mapping
 
+import numpy as np
 import pandas as pd
 
 from ..core.config import read_mapping
@@ -51,6 +52,10 @@ class Budget:
     seeds: int
     overrides: Mapping[str, Any] = field(default_factory=dict)
     grid: Mapping[str, list] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        if isinstance(self.seeds, bool) or not isinstance(self.seeds, int) or self.seeds < 1:
+            raise ConfigError(f"Budget: seeds: expected a positive integer, received {self.seeds!r}")
 
 
 @dataclass(frozen=True)
@@ -98,6 +103,10 @@ class Reproduction:
         for required in ("smallest", "default"):
             if required not in self.budgets:
                 raise ConfigError(f"reproduction {self.name}: budgets: expected a {required!r} budget, received {sorted(self.budgets)}")
+        for sweep, share in self.seed_shares.items():
+            if sweep not in self.sweeps or not 0 < share <= 1:
+                raise ConfigError(f"reproduction {self.name}: seed_shares: expected shares in (0, 1] of its own sweeps, "
+                                  f"received {sweep!r}: {share!r}")
 
     def sweep_mapping(self, sweep: str, budget: Budget, seeds: int | None = None) -> dict[str, Any]:
         """The sweep file ``sweep`` with ``budget`` (and a ``seeds`` count, if given) applied."""
@@ -150,7 +159,7 @@ def reproduce(
     as_executor(executor)
     if budget not in reproduction.budgets:
         raise ConfigError(f"--budget: expected one of {sorted(reproduction.budgets)}, received {budget!r}")
-    if seeds is not None and (isinstance(seeds, bool) or not isinstance(seeds, int) or seeds < 1):
+    if seeds is not None and (isinstance(seeds, (bool, np.bool_)) or not isinstance(seeds, (int, np.integer)) or seeds < 1):
         raise ConfigError(f"--seeds: expected a positive integer, received {seeds!r}")
     chosen = reproduction.budgets[budget]
     out_dir = Path(out) if out is not None else Path("results") / reproduction.name

@@ -102,17 +102,13 @@ def compare_traces(a: Trace, b: Trace, what: str) -> list[str]:
         out.append(f"{what}: events differ")
     if without_timings(a.metadata) != without_timings(b.metadata):
         out.append(f"{what}: metadata differs")
-    if json_text(without_timings(a.results)) != json_text(without_timings(b.results)):
+    if dumps_json(without_timings(a.results)) != dumps_json(without_timings(b.results)):
         out.append(f"{what}: results differ")
     return out
 
 
 def without_timings(mapping: dict[str, Any]) -> dict[str, Any]:
     return {k: v for k, v in mapping.items() if not str(k).endswith(TIMING_SUFFIX)}
-
-
-def json_text(obj: Any) -> str:
-    return dumps_json(obj)
 
 
 def check_summary(trace: Trace, family: Family) -> list[str]:
@@ -152,7 +148,7 @@ def check_round_trip(trace: Trace, directory: Path) -> list[str]:
     trace.save(directory)
     loaded = Trace.load(directory)
     out = compare_traces(trace, loaded, "save/load")
-    if json_text(trace.summary()) != json_text(loaded.summary()):
+    if dumps_json(trace.summary()) != dumps_json(loaded.summary()):
         out.append("save/load: summary differs")
     return out
 
