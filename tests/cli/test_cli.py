@@ -185,3 +185,10 @@ def test_out_that_is_or_lies_under_a_file_is_one_line(tmp_path, robofleet_bin, w
     assert_one_line_error(result, "--out: expected a directory", "is a file")
     result = run_cli(robofleet_bin, "sweep", "buavc_noise", "--out", out, "--quiet")
     assert_one_line_error(result, "store: expected a directory", "is a file")
+
+
+def test_the_catalogue_refuses_an_unknown_kind():
+    from robofleet.core.errors import ConfigError
+
+    with pytest.raises(ConfigError, match="kind: expected one of"):
+        robofleet.scenarios.list("scenario")

@@ -18,7 +18,7 @@ from pathlib import Path
 
 import yaml
 
-from ..core.errors import ScenarioError
+from ..core.errors import ConfigError, ScenarioError
 
 SUFFIX = ".yaml"
 ALIASES = {  # names of the files' earlier home, kept working
@@ -40,8 +40,13 @@ class Entry:
     path: Path
 
 
+KINDS = ("scenarios", "sweeps")
+
+
 def folder(kind: str) -> Path:
     """The folder of shipped ``kind`` files (``"scenarios"`` or ``"sweeps"``)."""
+    if kind not in KINDS:
+        raise ConfigError(f"kind: expected one of {list(KINDS)}, received {kind!r}")
     checkout = Path(__file__).resolve().parents[3] / kind
     if checkout.is_dir() and (checkout.parent / "pyproject.toml").exists():
         return checkout
