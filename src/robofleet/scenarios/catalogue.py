@@ -46,7 +46,7 @@ KINDS = ("scenarios", "sweeps")
 def folder(kind: str) -> Path:
     """The folder of shipped ``kind`` files (``"scenarios"`` or ``"sweeps"``)."""
     if kind not in KINDS:
-        raise ConfigError(f"kind: expected one of {list(KINDS)}, received {kind!r}")
+        raise ConfigError(f"kind: expected one of {builtins.list(KINDS)}, received {kind!r}")
     checkout = Path(__file__).resolve().parents[3] / kind
     if checkout.is_dir() and (checkout.parent / "pyproject.toml").exists():
         return checkout
