@@ -18,12 +18,14 @@ demo: $(STAMP)
 	MPLBACKEND=Agg $(BIN)/robofleet run scenarios/avoidance/circle_swap.yaml --seed 1 --out runs/demo --overwrite --animate
 
 test: $(STAMP)
+	@command -v chromium >/dev/null || echo "note: no chromium on PATH: the browser tests of the replay pages (tests/viz) are skipped (apt-get install chromium)"
 	MPLBACKEND=Agg $(BIN)/python -m pytest -n 2 -q
 
 docs: $(STAMP)
 	MPLBACKEND=Agg $(BIN)/python -m sphinx -W --keep-going -q -b html docs docs/_build/html
 
 bench: $(STAMP)
+	$(BIN)/python -m pip install --quiet -e ".[bench]"
 	$(BIN)/python benchmarks/run_all.py
 
 clean:

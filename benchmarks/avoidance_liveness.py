@@ -6,9 +6,16 @@ scenarios of :func:`robofleet.avoidance.random_scenarios.random_scenario` (8–1
 random antipodal swap, random convex obstacles; one seed each). Prints, per scenario,
 success with its Clopper–Pearson 95 % interval, the share of robots that arrived, the
 mean travel time over successful runs, contacts and the per-step contact rate's 95 %
-upper bound (next to δ). ``--liveness on|off|spec`` overrides the ``liveness:`` block.
+upper bound (next to δ), and the shares of robot-steps whose estimate lay in its own
+cell and whose cell was empty (the premise of the guarantee). ``--liveness on|off|spec``
+overrides the ``liveness:`` block.
 
-Run: ``python benchmarks/avoidance_liveness.py [--seeds 20] [--random 20] [--scenarios ten_boxes ...] [--liveness off] [--budget-factor 4]``
+``--before-after`` prints, per scenario, the paper's controller at the budget the
+scenarios shipped with before the liveness rules (:data:`EARLIER_BUDGETS`; what a user
+got) next to the shipped scenario (liveness rules on, budget by the straight-line rule),
+and the mean travel time of the runs both finish, paired by seed.
+
+Run: ``python benchmarks/avoidance_liveness.py [--seeds 20] [--random 20] [--first-seed 0] [--scenarios ten_boxes ...] [--liveness off] [--budget-factor 4] [--before-after]``
 """
 
 from __future__ import annotations
@@ -16,6 +23,7 @@ from __future__ import annotations
 import argparse
 import glob
 import os
+import platform
 import time
 
 import numpy as np
@@ -26,6 +34,11 @@ import robofleet
 from robofleet.avoidance.random_scenarios import random_scenario
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+
+
+EARLIER_BUDGETS = {"antipodal_swap": 500, "circle_swap": 500, "diff_drive": 800, "double_integrator": 600,
+                   "ten_boxes": 500, "three_boxes": 500, "random": 588}
+"""``max_steps`` of the scenarios before the straight-line rule (random: 2.5 × straight line)."""
 
 
 def clopper_pearson(k: int, n: int, level: float = 0.95) -> tuple[float, float]:
@@ -62,7 +75,16 @@ def run(mapping: dict, seed: int) -> dict:
     spec = robofleet.load_scenario({**mapping, "record_cells": False})
     trace = robofleet.simulate(spec, seed=seed)
     positions = trace.arrays["positions"]
-    return {**trace.results, "robot_steps": int(positions.shape[0] * positions.shape[1])}
+    return {**trace.results, "seed": seed, "robot_steps": int(positions.shape[0] * positions.shape[1])}
+
+
+def paired_travel_time(before: list[dict], after: list[dict]) -> str:
+    """Mean travel time before → after over the seeds both finish, and the change."""
+    both = [(b["mean_travel_time"], a["mean_travel_time"]) for b, a in zip(before, after) if b["success"] and a["success"]]
+    if not both:
+        return "— (no seed finished by both)"
+    tb, ta = np.mean(both, axis=0)
+    return f"{tb:.1f} → {ta:.1f} s ({100 * (ta / tb - 1):+.0f} %, {len(both)} seeds)"
 
 
 def summarise(label: str, results: list[dict], delta: float) -> str:
@@ -76,8 +98,27 @@ def summarise(label: str, results: list[dict], delta: float) -> str:
     steps = sum(r["robot_steps"] for r in results)
     rate_hi = clopper_pearson(contacts, max(steps, 1))[1] if steps else float("nan")
     t = f"{np.mean(times):.1f}" if times else "—"
+    inside = np.mean([r["estimate_in_cell_share"] for r in results])
+    empty = np.mean([r["empty_cell_share"] for r in results])
+    livelocks = sum(int(r.get("livelock_detections", 0)) for r in results)
+    deadlocks = sum(int(r["deadlock_detections"]) for r in results)
     return (f"| {label} | {n} | {100 * k / n:.0f} % [{100 * lo:.0f}, {100 * hi:.0f}] | {100 * arrived:.0f} % | {t} | "
-            f"{contacts} | {rate_hi:.1e} (δ = {delta}) |")
+            f"{contacts} | {rate_hi:.1e} (δ = {delta}) | {100 * inside:.0f} % | {100 * empty:.1f} % | {deadlocks - livelocks} / {livelocks} |")
+
+
+HEADER = ("| scenario | runs | success [CP 95 %] | arrived | mean travel time of successes [s] | contact steps | "
+          "robot-step contact rate, 95 % upper | estimate in cell | empty cell | stuck: deadlock / livelock |\n"
+          "|---|---:|---:|---:|---:|---:|---|---:|---:|---:|")
+
+
+def before_after(name: str, mapping: dict, seeds: range, delta: float) -> list[str]:
+    """Two table rows (the paper's controller at the earlier budget, the shipped scenario)
+    and the paired travel time."""
+    before = {**mapping, "max_steps": EARLIER_BUDGETS[name], "liveness": {"enabled": False}}
+    rows_b = [run(before, s) for s in seeds]
+    rows_a = [run(mapping, s) for s in seeds]
+    return [summarise(f"{name}, before", rows_b, delta), summarise(f"{name}, shipped", rows_a, delta),
+            f"|  | travel time, seeds both finish: {paired_travel_time(rows_b, rows_a)} |  |  |  |  |  |  |  |  |"]
 
 
 def main() -> None:
@@ -88,11 +129,24 @@ def main() -> None:
     ap.add_argument("--scenarios", nargs="*", default=None, help="shipped scenario names (default: all 2-D)")
     ap.add_argument("--liveness", choices=["on", "off", "spec"], default="spec")
     ap.add_argument("--budget-factor", type=float, default=1.0, help="multiply every step budget (1 = as shipped)")
+    ap.add_argument("--before-after", action="store_true", help="the paper's controller at the earlier budgets next to the shipped scenarios")
     args = ap.parse_args()
-    print("| scenario | runs | success [CP 95 %] | arrived | mean travel time of successes [s] | contact steps | robot-step contact rate, 95 % upper |")
-    print("|---|---:|---:|---:|---:|---:|---|")
+    print(f"machine: {platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}")
+    print(HEADER)
     t0 = time.perf_counter()
     seeds = range(args.first_seed, args.first_seed + args.seeds)
+    if args.before_after:
+        for name, mapping in shipped_mappings(args.scenarios).items():
+            print("\n".join(before_after(name, mapping, seeds, mapping.get("delta", 0.1))), flush=True)
+        if args.random:
+            rnd = range(args.first_seed, args.first_seed + args.random)
+            rows_b = [run({**random_scenario(s), "max_steps": EARLIER_BUDGETS["random"], "liveness": {"enabled": False}}, s) for s in rnd]
+            rows_a = [run(random_scenario(s), s) for s in rnd]
+            print(summarise(f"random {rnd.start}–{rnd.stop - 1}, before", rows_b, 0.1))
+            print(summarise(f"random {rnd.start}–{rnd.stop - 1}, shipped", rows_a, 0.1))
+            print(f"|  | travel time, seeds both finish: {paired_travel_time(rows_b, rows_a)} |  |  |  |  |  |  |  |  |")
+        print(f"wall time: {time.perf_counter() - t0:.0f} s")
+        return
     for name, mapping in shipped_mappings(args.scenarios).items():
         m = with_liveness(mapping, args.liveness, args.budget_factor)
         print(summarise(name, [run(m, s) for s in seeds], mapping.get("delta", 0.1)), flush=True)

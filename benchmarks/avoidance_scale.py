@@ -4,45 +4,49 @@ Robots sit on a circle whose radius grows with N so the spacing stays 4 r_s (nei
 found with a k-d tree, no O(N²) loop). Prints time per step and robot-steps per second
 over the first ``--steps`` steps (the whole team's cell construction + projection +
 control, as measured inside the simulation loop), and the growth factor between sizes
-(N log N growth would give ×11.5 from 1k to 10k and ×5.9 from 10k to 50k), the whole
+with the one N log N predicts (×13.3 from 1k to 10k, ×5.9 from 10k to 50k), the whole
 loop's time per step including the noise draws and the recording of the arrays
 (``trace.metadata["loop_seconds"]``), and the whole ``simulate`` call per step, which
 adds the set-up and the per-run results of :mod:`robofleet.avoidance.metrics` (pair
 contacts on every recorded state).
 
-Run: ``python benchmarks/avoidance_scale.py [--sizes 100 1000 10000] [--steps 30]``
+The kernels run on numba's threads (``--threads``, default all; see
+:mod:`robofleet.avoidance.kernels`).
+
+Run: ``python benchmarks/avoidance_scale.py [--sizes 100 1000 10000] [--steps 30] [--threads 1]``
 """
 
 from __future__ import annotations
 
 import argparse
 import math
-import platform
 import resource
 import time
 
+import numba
 import numpy as np
+from _machine import machine, nlogn_growth
 
 import robofleet
 
 
-def circle_mapping(n: int, steps: int, method: str = "buavc") -> dict:
+def circle_mapping(n: int, steps: int, method: str = "buavc", liveness: bool = False) -> dict:
     radius = max(4.0, n * 4 * 0.2 / (2 * math.pi))
     half = radius + 2.0
     return {
         "family": "avoidance", "name": f"circle-{n}", "method": method, "max_steps": steps,
         "workspace": {"bounds": [-half, -half, half, half]},
         "robots": {"n": n, "radius": 0.2, "v_max": 0.4, "sigma": 0.1, "layout": {"kind": "circle", "radius": radius}},
-        "record_cells": False,
+        "record_cells": False, "liveness": {"enabled": liveness},
     }
 
 
-def measure(n: int, steps: int, method: str, repeat: int) -> tuple[float, float, float]:
+def measure(n: int, steps: int, method: str, repeat: int, liveness: bool = False) -> tuple[float, float, float]:
     """Median algorithm time per step (cells + controller of the whole team), the whole
     loop's wall time per step (noise draws and recording included) and the whole
     ``simulate`` call's time per step (set-up and per-run results included); each the
     best of ``repeat`` runs (the first run of a process also compiles the kernels)."""
-    spec = robofleet.load_scenario(circle_mapping(n, steps, method))
+    spec = robofleet.load_scenario(circle_mapping(n, steps, method, liveness))
     figures = []
     for _ in range(repeat):
         t0 = time.perf_counter()
@@ -59,15 +63,20 @@ def main() -> None:
     ap.add_argument("--steps", type=int, default=30)
     ap.add_argument("--method", default="buavc")
     ap.add_argument("--repeat", type=int, default=3, help="runs per size; the best is shown")
+    ap.add_argument("--threads", type=int, default=numba.get_num_threads())
+    ap.add_argument("--liveness", action="store_true", help="with the default liveness rules (off: the paper's controller)")
     args = ap.parse_args()
-    print(f"machine: {platform.machine()} {platform.processor() or ''} · python {platform.python_version()} · numpy {np.__version__}")
-    print(f"{'robots':>8} {'ms/step':>10} {'robot-steps/s':>15} {'growth':>8} {'loop ms/step':>13} {'run ms/step':>12}")
+    numba.set_num_threads(args.threads)
+    print(machine())
+    print(f"liveness rules {'on' if args.liveness else 'off (the paper controller, appendix C)'}")
+    print(f"{'robots':>8} {'ms/step':>10} {'robot-steps/s':>15} {'growth':>8} {'N log N':>8} {'loop ms/step':>13} {'run ms/step':>12}")
     prev = None
     for n in args.sizes:
-        sec, loop, run = measure(n, args.steps, args.method, args.repeat)
-        growth = f"×{sec / prev:.1f}" if prev else ""
-        print(f"{n:>8} {sec * 1e3:>10.2f} {n / sec:>15,.0f} {growth:>8} {loop * 1e3:>13.2f} {run * 1e3:>12.2f}")
-        prev = sec
+        sec, loop, run = measure(n, args.steps, args.method, args.repeat, args.liveness)
+        growth = f"×{sec / prev[1]:.1f}" if prev else ""
+        ref = f"×{nlogn_growth(prev[0], n):.1f}" if prev else ""
+        print(f"{n:>8} {sec * 1e3:>10.2f} {n / sec:>15,.0f} {growth:>8} {ref:>8} {loop * 1e3:>13.2f} {run * 1e3:>12.2f}", flush=True)
+        prev = (n, sec)
     print(f"peak RSS: {resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20:.2f} GiB")
 
 

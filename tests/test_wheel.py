@@ -53,3 +53,14 @@ def test_wheel_ships_the_catalogue_and_runs_by_name_from_anywhere(wheel_venv, tm
     )
     where = run(wheel_venv / "bin" / "python", "-c", probe, cwd=tmp_path, env=env)
     assert str(ROOT) not in where
+
+
+def test_wheel_ships_the_replay_page_and_view_writes_it(wheel_venv, tmp_path):
+    """The replay page's template, script and style are package data: `view` works from
+    an installed wheel."""
+    env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH",)} | {"MPLBACKEND": "Agg"}
+    robofleet = wheel_venv / "bin" / "robofleet"
+    run(robofleet, "run", "avoidance/circle_swap", "--seed", "1", "--out", tmp_path / "run", cwd=tmp_path, env=env)
+    run(robofleet, "view", tmp_path / "run", "--no-open", "--out", tmp_path / "replay.html", cwd=tmp_path, env=env)
+    page = (tmp_path / "replay.html").read_text()
+    assert "<canvas" in page and "data-ready" in page  # the template and its script are inside

@@ -69,19 +69,27 @@ def test_commanded_step_stays_inside_the_cell():
     assert np.all(np.linalg.norm(u, axis=1) <= 0.4 + 1e-12)
 
 
-def head_on(deadlock_enabled):
+def head_on(deadlock_enabled, liveness=False):
     return robofleet.load_scenario({
         "method": "bvc", "max_steps": 400,
         "robots": {"n": 2, "sigma": 0.0, "layout": {"kind": "explicit", "starts": [[-2, 0], [2, 0]], "goals": [[2, 0], [-2, 0]]}},
-        "deadlock": {"enabled": deadlock_enabled},
+        "deadlock": {"enabled": deadlock_enabled}, "liveness": {"enabled": liveness},
     })
 
 
 def test_deadlock_heuristic_resolves_a_head_on_swap():
+    """The paper's controller (liveness rules off): appendix C frees the symmetric swap."""
     stuck = robofleet.simulate(head_on(False), seed=0).summary()
     freed = robofleet.simulate(head_on(True), seed=0).summary()
     assert stuck["arrived"] == 0.0  # the symmetric swap deadlocks at the bisector
     assert freed["success"] and freed["deadlock_detections"] >= 1
+
+
+def test_right_hand_rule_alone_resolves_a_head_on_swap():
+    """With the liveness rules and no appendix-C heuristic, both robots veer right at the
+    bisector and pass: no deadlock is ever detected."""
+    out = robofleet.simulate(head_on(False, liveness=True), seed=0).summary()
+    assert out["success"] and out["deadlock_detections"] == 0
 
 
 def test_buavc_team_with_noise_reaches_goals_without_collision():

@@ -1,4 +1,5 @@
-"""Liveness (issue 10): parked robots yield, and the command never leaves the cell."""
+"""Liveness (issue 10): roadmap sub-goals, the right-hand turn and parked robots that
+yield — and the command never leaves the cell."""
 
 import numpy as np
 import pytest
@@ -38,7 +39,7 @@ def test_yielding_commands_stay_inside_random_cells(seed):
     goals = est + rng.normal(0, 0.05, (n, 2))  # most robots parked next to their goals
     goals[: n // 3] = -est[: n // 3]
     state = ControllerState.initial(n, 20)
-    params = LivenessParams(enabled=True, near=1.5, linger_steps=1, aside=rng.uniform(0.2, 1.5), yield_steps=5)
+    params = LivenessParams(enabled=True, near=1.5, linger_steps=1, aside=rng.uniform(0.2, 1.5), clear_steps=5)
     for _ in range(3):  # hold → yield → keep yielding
         u, _ = single_integrator_control(est, goals, cells, state, v_max=0.4, dt=0.1, goal_tolerance=0.1,
                                          deadlock=DeadlockParams(), liveness=params, local_box=2.0)
@@ -49,23 +50,60 @@ def test_yielding_commands_stay_inside_random_cells(seed):
     assert np.any(np.linalg.norm(u[state.arrived], axis=1) > 0)
 
 
-def test_parked_robot_yields_away_from_a_lingering_neighbour_then_returns():
+def test_parked_robot_yields_while_a_neighbour_lingers_then_returns():
+    """HOLD until the neighbour has lingered linger_steps; YIELD (to the neighbour's left,
+    aside_turn = 90°) while it stays near; RETURN clear_steps after it left, until the
+    estimate is back at the goal (here at once: the estimates stay put); then HOLD."""
     est = np.array([[0.0, 0.0], [0.5, 0.0]])
     goals = est.copy()
     parked = np.array([True, False])
     state = ParkingState.initial(2)
-    params = LivenessParams(enabled=True, near=1.0, linger_steps=3, aside=0.6, yield_steps=4)
+    params = LivenessParams(enabled=True, near=1.0, linger_steps=3, aside=0.6, aside_turn=90.0, clear_steps=2, return_steps=3)
     modes = []
-    for _ in range(12):
+    for k in range(14):
+        if k == 4:
+            est[1] = [5.0, 0.0]  # the neighbour leaves
         target, moving = parking_targets(est, goals, parked, state, params)
         modes.append(int(state.mode[0]))
         if state.mode[0] == YIELD:
-            np.testing.assert_allclose(target[0], [-0.6, 0.0])  # away from the neighbour
-    assert modes == [HOLD, HOLD] + [YIELD] * 4 + [RETURN] * 4 + [HOLD, HOLD]
+            np.testing.assert_allclose(target[0], [0.0, -0.6], atol=1e-12)  # away from it, turned 90° counter-clockwise
+    assert modes == [HOLD, HOLD] + [YIELD] * 3 + [RETURN] + [HOLD] * 8
     assert state.mode[1] == HOLD and not moving[1]  # a robot that has not arrived never yields
 
 
-def trap(liveness: bool, seed: int) -> dict:
+def test_a_returning_robot_drives_until_it_is_back_at_its_goal():
+    est, goals = np.array([[0.0, -1.0]]), np.zeros((1, 2))
+    state = ParkingState.initial(1)
+    state.mode[:], state.mode_left[:] = RETURN, 200
+    for k in range(10):
+        est[0, 1] = -1.0 + 0.1 * k  # driving back, 0.1 m a step
+        target, moving = parking_targets(est, goals, np.array([True]), state, LivenessParams(enabled=True), tolerance=0.1)
+        assert moving[0] == (k < 9)
+        assert state.settled(est, goals, 0.1) == (k >= 7)  # within 3 × tolerance
+        np.testing.assert_allclose(target[0], goals[0])
+
+
+def test_a_run_ends_only_when_every_robot_is_back_at_its_goal():
+    """Latched arrival alone would end a run with a robot stepped aside, up to max_aside
+    from its goal: the run goes on until every yield is over."""
+    for seed in range(3):
+        out = robofleet.simulate(robofleet.load_scenario(trap_mapping(True)), seed=seed)
+        final = np.linalg.norm(out.positions[-1] - np.asarray(out.metadata["goals"]), axis=1)
+        assert out.results["success"] and final.max() < 3 * 0.1 + 4 * 0.1  # 3 × tolerance on the estimate + 4σ
+
+
+def test_a_yielding_robot_moves_further_aside_but_never_beyond_max_aside():
+    est = np.array([[0.0, 0.0], [0.4, 0.0]])
+    goals = est.copy()
+    state = ParkingState.initial(2)
+    params = LivenessParams(enabled=True, near=1.0, linger_steps=2, aside=0.5, aside_turn=0.0, max_aside=1.2)
+    for _ in range(40):
+        target, _ = parking_targets(est, goals, np.array([True, False]), state, params)
+        assert np.linalg.norm(target[0] - goals[0]) <= 1.2 + 1e-12
+    np.testing.assert_allclose(target[0], [-1.2, 0.0])
+
+
+def trap_mapping(liveness: bool) -> dict:
     """A corridor 2.8 m wide; two robots parked at their goals 0.95 m apart across it.
     A third robot must pass between them: it needs about 1.45 m, and the lanes beside
     them are narrower than its clearance, so there is no way around."""
@@ -75,7 +113,11 @@ def trap(liveness: bool, seed: int) -> dict:
                     "layout": {"kind": "explicit", "starts": [[0, 0.475], [0, -0.475], [-3, 0]],
                                "goals": [[0, 0.475], [0, -0.475], [3, 0]]}},
          "liveness": {"enabled": liveness}}
-    return robofleet.simulate(robofleet.load_scenario(m), seed=seed).results
+    return m
+
+
+def trap(liveness: bool, seed: int) -> dict:
+    return robofleet.simulate(robofleet.load_scenario(trap_mapping(liveness)), seed=seed).results
 
 
 @pytest.mark.parametrize("seed", range(3))
@@ -85,12 +127,13 @@ def test_two_parked_robots_trap_only_yielding_escapes(seed):
     assert after["success"] and after["collision_steps"] == 0
 
 
-def test_liveness_is_off_by_default_and_changes_nothing_then():
-    spec = robofleet.load_scenario("scenarios/avoidance/three_boxes.yaml", overrides={"max_steps": 80})
-    assert not spec.liveness.enabled
-    a = robofleet.simulate(spec, seed=4)
+def test_liveness_is_on_by_default_and_off_changes_nothing_else():
+    """Off, its parameters are ignored: the paper's controller, bit for bit."""
+    assert robofleet.load_scenario("scenarios/avoidance/three_boxes.yaml").liveness.enabled
+    off = {"max_steps": 80, "liveness": {"enabled": False}}
+    a = robofleet.simulate(robofleet.load_scenario("scenarios/avoidance/three_boxes.yaml", overrides=off), seed=4)
     b = robofleet.simulate(robofleet.load_scenario("scenarios/avoidance/three_boxes.yaml",
-                                                   overrides={"max_steps": 80, "liveness": {"enabled": False, "aside": 0.9}}), seed=4)
+                                                   overrides={**off, "liveness": {"enabled": False, "aside": 0.9, "near": 0.3}}), seed=4)
     np.testing.assert_array_equal(a.arrays["positions"], b.arrays["positions"])
 
 

@@ -4,7 +4,12 @@ import numpy as np
 import pytest
 
 from robofleet.avoidance.cell3d import project_onto_polytope, workspace_box_planes
-from robofleet.avoidance.mpc import BuavcMPC, MPCConfig, SingleIntegratorParams, rotate_goal_clockwise
+from robofleet.avoidance.mpc import (
+    BuavcMPC,
+    MPCConfig,
+    SingleIntegratorParams,
+    rotate_goal_clockwise,
+)
 from robofleet.core.errors import ConfigError
 from robofleet.dynamics import double_integrator as di
 from robofleet.dynamics import quadrotor as quad
@@ -45,7 +50,7 @@ def test_mpc_keeps_every_stage_in_the_cell(name, params, dim, dt, horizon, step,
     target, _ = project_onto_polytope(goal, A[None], b[None])
     closest = np.inf
     valid = np.ones((1, len(b)), bool)
-    for _ in range(int(round(4.0 / dt))):
+    for _ in range(round(4.0 / dt)):
         u, info = mpc.control(state, goal, A[None], b[None], valid)
         assert not info["fallback"][0], "the solver failed on a feasible problem"
         plan = info["plans"][0]
@@ -82,7 +87,7 @@ def test_more_cell_rows_than_the_problem_holds_keeps_the_tightest():
     ang = np.linspace(0, 2 * np.pi, 12, endpoint=False)
     A = np.stack([np.cos(ang), np.sin(ang)], -1)
     b = np.arange(1.0, 13.0)
-    Ap, bp = mpc.cell_parameters(A, b, np.ones(12, bool), np.zeros(2))
+    _, bp = mpc.cell_parameters(A, b, np.ones(12, bool), np.zeros(2))
     np.testing.assert_allclose(bp, [1, 2, 3, 4])
 
 

@@ -93,7 +93,7 @@ def test_unequal_anisotropic_covariances_keep_the_chance_constraint_where_its_pr
     frequency is not significantly above δ (one-sided 95 % Clopper–Pearson lower bound)."""
     n, delta = BASE["robots"]["n"], BASE.get("delta", 0.1)
     premised, contacts = 0, 0
-    for seed in range(100, 110):
+    for seed in range(100, 120):
         trace = simulate(scenario(cov=anisotropic_covariances(n, seed)), seed=seed)
         pos, inside = trace.positions, trace.arrays["estimate_in_cell"]
         radius = trace.metadata["radius"]

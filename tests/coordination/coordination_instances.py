@@ -105,3 +105,34 @@ def _apart(a, b, reach) -> bool:
     pa = np.vstack([a, np.repeat(a[-1:], t - len(a), axis=0)])
     pb = np.vstack([b, np.repeat(b[-1:], t - len(b), axis=0)])
     return bool(np.all(np.linalg.norm(pa - pb, axis=1) >= reach))
+
+
+def roundabout_instance(rng: np.random.Generator, n_robots: int, ring_radius: float = 6.0, spoke: float = 3.0,
+                        speed: float = 0.3, radius: float = 0.5):
+    """A roundabout: robot ``i`` comes in along a spoke at angle ``≈ 2πi/n``, drives
+    counter-clockwise around the ring and leaves along its own exit spoke (exits halfway
+    between entries, a random permutation), after the smallest start delay that keeps the
+    plan collision-free (random priority). Robots follow each other around the ring, so
+    their collision segments overlap in long chains; starts and goals stay on the spokes,
+    away from the ring (Definition 4 holds)."""
+    slot = 2 * np.pi / n_robots
+    exits = rng.permutation(n_robots)
+    paths = []
+    for i in range(n_robots):
+        a0 = i * slot + rng.uniform(-0.1, 0.1)
+        a1 = a0 + ((exits[i] + 0.5) * slot - a0) % (2 * np.pi)
+        inward = np.linspace(ring_radius + spoke, ring_radius, int(spoke / speed) + 1)[:, None] * [np.cos(a0), np.sin(a0)]
+        angles = np.linspace(a0, a1, int(ring_radius * (a1 - a0) / speed) + 1)
+        arc = ring_radius * np.column_stack([np.cos(angles), np.sin(angles)])
+        outward = np.linspace(ring_radius, ring_radius + spoke, int(spoke / speed) + 1)[:, None] * [np.cos(a1), np.sin(a1)]
+        paths.append(np.vstack([inward, arc[1:], outward[1:]]))
+    placed, delayed = [], [None] * n_robots
+    for i in rng.permutation(n_robots):
+        for delay in range(0, 600, 2):
+            cand = np.vstack([np.repeat(paths[i][:1], delay, axis=0), paths[i]])
+            if all(_apart(cand, other, 2 * radius) for other in placed):
+                break
+        placed.append(cand)
+        delayed[i] = cand
+    traj = make_trajectories(delayed, radius, 0.1)
+    return traj, build_coordination_space(traj)

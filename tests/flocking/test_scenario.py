@@ -24,9 +24,8 @@ def test_duplicate_pattern_points_are_rejected_with_the_field_path():
 def test_duplicate_points_in_a_pattern_file(tmp_path):
     f = tmp_path / "dup.yaml"
     f.write_text("points: [[-10, 5], [-10, 5]]\n")
-    spec = load(pattern={"kind": "file", "path": str(f)}, duration=5)
-    with pytest.raises(ScenarioError, match="dup.yaml: points: expected distinct points"):
-        robofleet.simulate(spec, seed=1)
+    with pytest.raises(ScenarioError, match="dup.yaml: points: expected distinct points"):  # at validation, which reads the file
+        robofleet.simulate(load(pattern={"kind": "file", "path": str(f)}, duration=5), seed=1)
 
 
 def test_pattern_file_relative_to_the_scenario(tmp_path):

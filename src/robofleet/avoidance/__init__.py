@@ -16,6 +16,7 @@ from .cell import CellGeometry, Cells, Kind, build_cells, cell_from_view
 from .guarantees import check
 from .obstacles import ObstacleSet, obstacle_planes, wall_planes
 from .projection import project_onto_cells
+from .safety_filter import FilterResult, RobotSafetyFilter, SafetyFilter
 from .separator import gaussian_separator
 from .simulation import simulate
 from .spec import Spec
@@ -24,5 +25,5 @@ __all__ = [
     "Spec", "simulate", "check",
     "gaussian_separator", "build_cells", "cell_from_view", "Cells", "CellGeometry", "Kind",
     "project_onto_cells", "confidence_quantile", "shadow_epsilon", "buffer",
-    "ObstacleSet", "obstacle_planes", "wall_planes",
+    "ObstacleSet", "obstacle_planes", "wall_planes", "SafetyFilter", "RobotSafetyFilter", "FilterResult",
 ]

@@ -5,11 +5,13 @@ walls tightened the same way}``, recomputed every control step from the current
 estimates, with only the neighbours and obstacles inside robot i's local box
 ``p̂_i ± R_loc`` taken into account.
 
-Cells of all robots are stored as padded half-space arrays (:class:`Cells`). The batch
-builder evaluates each unordered robot pair once and gives robot j the reciprocal plane
-``(−a, −b)`` (appendix B), which is exactly what j computes from its own view;
-:func:`cell_from_view` builds one robot's cell from its local view alone and is the
-reference the tests compare the batch against.
+Cells of all robots are stored as padded half-space arrays (:class:`Cells`), each robot's
+rows in the order neighbours (by index), obstacles, walls. When all robots share one Σ in
+the plane, a compiled kernel builds each robot's rows from its own view, robots in
+parallel; robot j's plane for a pair is then exactly ``(−a, −b)`` of robot i's (appendix
+B). Otherwise the builder evaluates each unordered pair once and gives robot j the
+reciprocal plane. :func:`cell_from_view` builds one robot's cell from its local view
+alone and is the reference the tests compare the batch against.
 """
 
 from __future__ import annotations
@@ -21,9 +23,23 @@ import numba
 import numpy as np
 from scipy.spatial import cKDTree
 
+from ..core.errors import ConfigError, short_repr
 from .buffer import buffer
+from .kernels import use_parallel
+from .neighbours import (
+    around,
+    box_gather,
+    box_neighbours,
+    build_grid,
+    insertion_sort,
+)
 from .obstacles import ObstacleSet, obstacle_planes
-from .separator import separator_flat, shared_covariance_separator
+from .separator import (
+    separator_flat,
+    separator_mode,
+    shared_covariance_separator,
+    shared_separator_row,
+)
 
 
 class Kind(IntEnum):
@@ -49,13 +65,27 @@ class Cells:
     source: np.ndarray
 
     def contains(self, points: np.ndarray, tol: float = 1e-9) -> np.ndarray:
-        """Whether each robot's point ``(N, d)`` lies in its own cell."""
-        return np.all(np.matmul(self.A, points[..., None])[..., 0] <= self.b + tol, axis=1)
+        """Whether each robot's point ``(N, d)`` lies in its own cell (padding rows hold)."""
+        if self.A.shape[-1] != 2:
+            return np.all(np.matmul(self.A, points[..., None])[..., 0] <= self.b + tol, axis=1)
+        inside = np.empty(len(points), np.bool_)
+        _contains_2d(np.ascontiguousarray(self.A), np.ascontiguousarray(self.b), np.ascontiguousarray(points, dtype=np.float64), float(tol), inside)
+        return inside
 
     def robot(self, i: int) -> tuple[np.ndarray, np.ndarray]:
         """``(A, b)`` of robot i's valid constraints."""
         keep = self.valid[i]
         return self.A[i, keep], self.b[i, keep]
+
+
+@numba.njit(cache=True)
+def _contains_2d(A, b, points, tol, inside):
+    for i in range(len(points)):
+        inside[i] = True
+        for k in range(A.shape[1]):
+            if not A[i, k, 0] * points[i, 0] + A[i, k, 1] * points[i, 1] <= b[i, k] + tol:
+                inside[i] = False
+                break
 
 
 @dataclass(frozen=True)
@@ -68,9 +98,15 @@ class CellGeometry:
 
 
 def neighbour_pairs(estimates: np.ndarray, local_box: float) -> np.ndarray:
-    """Unordered pairs ``(i, j)``, ``i < j``, inside each other's local box ``|p̂_i − p̂_j|_∞ ≤ R_loc``."""
+    """Unordered pairs ``(i, j)``, ``i < j``, inside each other's local box ``|p̂_i − p̂_j|_∞ ≤ R_loc``
+    (2-D: uniform grid, sorted by ``(i, j)``; 3-D: k-d tree)."""
     if len(estimates) < 2:
         return np.empty((0, 2), dtype=np.intp)
+    if estimates.shape[1] == 2:
+        start, index = box_neighbours(estimates, local_box)
+        owner = np.repeat(np.arange(len(estimates), dtype=np.intp), np.diff(start))
+        keep = owner < index
+        return np.column_stack([owner[keep], index[keep].astype(np.intp)])
     return cKDTree(estimates).query_pairs(local_box, p=np.inf, output_type="ndarray").reshape(-1, 2)
 
 
@@ -93,14 +129,168 @@ def build_cells(
     geometry: obstacles and walls.
     local_box: R_loc, half-width of the local box.
 
-    Complexity: O(N log N + K) for K neighbour pairs, plus O(N · O_loc · V) for obstacles.
+    Notes
+    -----
+    In the plane with one Σ shared by all robots (the authors' setup) every robot's rows
+    come from one compiled kernel, robots in parallel (:func:`_shared_cells_2d`);
+    otherwise pairs are evaluated once each and scattered (appendix B reciprocity).
+    The cost is O(N + K) for K neighbour pairs (a uniform grid, :mod:`.neighbours`; a
+    k-d tree in 3-D), plus O(N · O_loc · V) for obstacles.
     """
-    n = len(estimates)
+    check_cell_inputs(estimates, covs, radius, geometry)
+    n, d = estimates.shape
+    obstacles = _obstacle_rows(estimates, covs, radius, quantile, geometry.obstacles, local_box)
+    if d == 2 and n > 0 and _uniform(covs):
+        return _shared_cells_2d(estimates, covs[0], radius, quantile, geometry, obstacles, local_box)
     pairs = neighbour_pairs(estimates, local_box)
-    parts = [_robot_rows(estimates, covs, radius, quantile, pairs)]
-    parts.append(_obstacle_rows(estimates, covs, radius, quantile, geometry.obstacles, local_box))
-    parts.append(_wall_rows(estimates, covs, radius, quantile, geometry, local_box))
-    return _pad(n, estimates.shape[1], parts)
+    parts = [_robot_rows(estimates, covs, radius, quantile, pairs), obstacles,
+             _wall_rows(estimates, covs, radius, quantile, geometry, local_box)]
+    return _pad(n, d, parts)
+
+
+def _shared_cells_2d(p, cov, radius, quantile, geometry: CellGeometry, obstacles, local_box) -> Cells:
+    """Cells of 2-D robots sharing Σ, one compiled pass per robot.
+
+    Robot i's rows, in increasing neighbour index, are ``a = Σ⁻¹(p̂_j − p̂_i)/‖·‖``,
+    ``b = aᵀ(p̂_i + p̂_j)/2 − β − r_s`` (:func:`~.separator.shared_separator_row`: Eqs.
+    (48)–(50) with t = ½), then its obstacle rows, then its wall rows (walls within
+    R_loc, ``b_w − β(a_w) − r_s``). Robot j computes exactly ``(−a, −b)`` for the same
+    pair (the formulas are odd in ``p̂_j − p̂_i`` and symmetric in ``p̂_i + p̂_j``), so each
+    robot's rows come from its own view: a first pass gathers every robot's neighbours
+    (sizing the padded arrays), a second writes every robot's rows once, robots in
+    parallel (:mod:`.kernels`).
+    """
+    n = len(p)
+    p = np.ascontiguousarray(p, dtype=np.float64)
+    g = build_grid(p, local_box)
+    grid = (local_box, g.rows, g.table_keys, g.table_cells, g.cell_xy, g.start, g.order, g.sorted_points)
+    wall_a = np.ascontiguousarray(geometry.wall_a, dtype=np.float64).reshape(-1, 2)
+    wall_b = np.ascontiguousarray(geometry.wall_b, dtype=np.float64).reshape(-1)
+    wall_spread = quantile * np.sqrt(np.maximum(_quad_2d(wall_a, cov), 0.0))  # β − r_s of each wall row, as buffer()
+    o_start, o_a, o_b, o_src = _by_owner(n, obstacles)
+    count, walls, near = _gather(grid, wall_a, wall_b, n, use_parallel(n))
+    mode, solve = separator_mode(np.asarray(cov, dtype=np.float64), pairs=int(count.sum()) // 2)
+    m = max(int((count + np.diff(o_start) + walls).max(initial=0)), 1)
+    A, b = np.empty((n, m, 2)), np.empty((n, m))
+    valid, kinds, src = np.empty((n, m), np.bool_), np.empty((n, m), np.int8), np.empty((n, m), np.intp)
+    c = np.asarray(cov, dtype=np.float64)
+    args = (p, near, count, mode, solve, c[0, 0], c[0, 1], c[1, 1], float(quantile), np.ascontiguousarray(radius, dtype=np.float64),
+            o_start, o_a, o_b, o_src, wall_a, wall_b, wall_spread, local_box, A, b, valid, kinds, src)
+    if use_parallel(n):
+        _fill_parallel(*args)
+    else:
+        _fill_rows(0, n, *args)
+    return Cells(A, b, valid, kinds, src)
+
+
+def _quad_2d(normals: np.ndarray, cov: np.ndarray) -> np.ndarray:
+    """``aᵀΣa`` of unit normals ``(K, 2)``, rounded exactly as :func:`~.buffer.buffer` does."""
+    return normals[:, 0] * (cov[0, 0] * normals[:, 0] + 2 * cov[0, 1] * normals[:, 1]) + cov[1, 1] * normals[:, 1] ** 2
+
+
+@numba.njit(cache=True, inline="always")
+def _near_wall(x, y, wall_a, wall_b, w, r):
+    """Wall w is within R_loc of the point (:func:`_wall_rows`' test ``b_w − a_w·p ≤ R_loc``)."""
+    return wall_b[w] - (wall_a[w, 0] * x + wall_a[w, 1] * y) <= r
+
+
+def _by_owner(n: int, rows):
+    """Obstacle rows ``(owner, a, b, kind, source)`` (owner-major, as :func:`_obstacle_rows`
+    makes them) as CSR by owner."""
+    start = np.zeros(n + 1, np.int64)
+    if rows is None or len(rows[0]) == 0:
+        return start, np.zeros((0, 2)), np.zeros(0), np.zeros(0, np.intp)
+    np.cumsum(np.bincount(rows[0], minlength=n), out=start[1:])
+    return start, np.ascontiguousarray(rows[1], dtype=np.float64), np.ascontiguousarray(rows[2], dtype=np.float64), rows[4].astype(np.intp)
+
+
+_CHUNK = 64  # grid cells (or robots, × 4) per parallel task
+_NEAR = 16  # neighbours kept per robot by the gathering pass (more: a second, wider pass)
+
+
+def _gather(grid, wall_a, wall_b, n, parallel):
+    """Every robot's box neighbours, sorted, into ``near (N, width)``, their ``count`` and
+    the number of walls within R_loc; ``width`` is 16 unless a robot has more."""
+    count, walls = np.empty(n, np.int64), np.empty(n, np.int64)
+    width = _NEAR
+    while True:
+        near = np.empty((n, width), np.int32 if n < 2**31 else np.int64)
+        if parallel:
+            _gather_parallel(*grid, wall_a, wall_b, near, count, walls)
+        else:
+            _gather_cells(0, len(grid[5]) - 1, *grid, wall_a, wall_b, near, count, walls)
+        most = int(count.max(initial=0))
+        if most <= width:
+            return count, walls, near
+        width = most
+
+
+@numba.njit(cache=True, parallel=True)
+def _gather_parallel(r, rows, table_keys, table_cells, cell_xy, cstart, order, spts, wall_a, wall_b, near, count, walls):
+    cells = len(cstart) - 1
+    for c in numba.prange((cells + _CHUNK - 1) // _CHUNK):
+        _gather_cells(c * _CHUNK, min(cells, (c + 1) * _CHUNK), r, rows, table_keys, table_cells, cell_xy, cstart, order, spts,
+                      wall_a, wall_b, near, count, walls)
+
+
+@numba.njit(cache=True)
+def _gather_cells(lo, hi, r, rows, table_keys, table_cells, cell_xy, cstart, order, spts, wall_a, wall_b, near, count, walls):
+    """Robots of grid cells ``lo … hi − 1``: box neighbours (sorted into ``near[i]`` when
+    they fit), their count, and the walls within R_loc."""
+    runs = np.empty(9, np.int64)
+    buf = np.empty(near.shape[1], np.int64)
+    for c in range(lo, hi):
+        around(c, 1, rows, table_keys, table_cells, cell_xy, runs)
+        for m in range(cstart[c], cstart[c + 1]):
+            i = order[m]
+            k = box_gather(m, r, runs, cstart, order, spts, buf)
+            count[i] = k
+            if k <= len(buf):
+                insertion_sort(buf[:k])
+                for t in range(k):
+                    near[i, t] = buf[t]
+            walls[i] = 0
+            for w in range(len(wall_b)):
+                walls[i] += _near_wall(spts[m, 0], spts[m, 1], wall_a, wall_b, w, r)
+
+
+@numba.njit(cache=True, parallel=True)
+def _fill_parallel(p, near, count, mode, solve, c00, c01, c11, quantile, radius, o_start, o_a, o_b, o_src, wall_a, wall_b, wall_spread, r,
+                   A, b, valid, kinds, src):
+    n, chunk = len(p), 4 * _CHUNK
+    for c in numba.prange((n + chunk - 1) // chunk):
+        _fill_rows(c * chunk, min(n, (c + 1) * chunk), p, near, count, mode, solve, c00, c01, c11, quantile, radius,
+                   o_start, o_a, o_b, o_src, wall_a, wall_b, wall_spread, r, A, b, valid, kinds, src)
+
+
+@numba.njit(cache=True)
+def _fill_rows(lo, hi, p, near, count, mode, solve, c00, c01, c11, quantile, radius, o_start, o_a, o_b, o_src, wall_a, wall_b, wall_spread, r,
+               A, b, valid, kinds, src):
+    """Padded rows of robots ``lo … hi − 1`` (see :func:`_shared_cells_2d`)."""
+    for i in range(lo, hi):
+        x, y = p[i, 0], p[i, 1]
+        for t in range(count[i]):
+            j = near[i, t]
+            a0, a1, off = shared_separator_row(x, y, p[j, 0], p[j, 1], mode, solve)
+            quad = a0 * (c00 * a0 + 2 * c01 * a1) + c11 * (a1 * a1)  # aᵀΣa, as buffer.buffer
+            _put(A, b, valid, kinds, src, i, t, a0, a1, (off - (0.0 + quantile * np.sqrt(max(quad, 0.0)))) - radius[i], 0, j)
+        t = count[i]
+        for e in range(o_start[i], o_start[i + 1]):
+            _put(A, b, valid, kinds, src, i, t, o_a[e, 0], o_a[e, 1], o_b[e], 1, o_src[e])
+            t += 1
+        for w in range(len(wall_b)):
+            if _near_wall(x, y, wall_a, wall_b, w, r):
+                _put(A, b, valid, kinds, src, i, t, wall_a[w, 0], wall_a[w, 1], wall_b[w] - (radius[i] + wall_spread[w]), 2, w)
+                t += 1
+        for pad in range(t, A.shape[1]):
+            _put(A, b, valid, kinds, src, i, pad, 0.0, 0.0, 1.0, -1, -1)
+            valid[i, pad] = False
+
+
+@numba.njit(cache=True, inline="always")
+def _put(A, b, valid, kinds, src, i, t, a0, a1, off, kind, source):
+    A[i, t, 0], A[i, t, 1], b[i, t] = a0, a1, off
+    valid[i, t], kinds[i, t], src[i, t] = True, kind, source
 
 
 def _robot_rows(p, covs, radius, quantile, pairs):
@@ -208,3 +398,17 @@ def cell_from_view(
     if not rows_a:
         return np.zeros((0, p.shape[0])), np.zeros(0), np.zeros(0, int)
     return np.concatenate(rows_a), np.concatenate(rows_b), np.concatenate(kinds)
+
+
+# -- input validation of build_cells (shapes and types only: O(1), it runs every step) --------
+def check_cell_inputs(estimates: object, covs: object, radius: object, geometry: object) -> None:
+    """One-line :class:`~robofleet.core.errors.ConfigError` s for arguments of the wrong kind or shape."""
+    if not isinstance(estimates, np.ndarray) or estimates.ndim != 2 or estimates.shape[1] not in (2, 3):
+        raise ConfigError(f"estimates: expected an array (N, 2) or (N, 3), received {short_repr(estimates)}")
+    n, d = estimates.shape
+    if not isinstance(covs, np.ndarray) or covs.shape != (n, d, d):
+        raise ConfigError(f"covs: expected an array ({n}, {d}, {d}), received shape {np.shape(covs)}")
+    if np.shape(radius) != (n,):
+        raise ConfigError(f"radius: expected an array ({n},), received shape {np.shape(radius)}")
+    if not isinstance(geometry, CellGeometry):
+        raise ConfigError(f"geometry: expected a CellGeometry, received {type(geometry).__name__}")

@@ -5,7 +5,7 @@ Each step, robot i projects its (possibly temporary) goal onto its cell, ``g* = 
 and commands ``u = min(v_max, ‖g* − p̂‖/Δt) · (g* − p̂)/‖g* − p̂‖`` (zero when the cell is
 empty or once the robot has reached its goal, after which it holds its position).
 
-Deadlock detection (ours, documented): a robot that has not arrived is deadlocked when,
+Deadlock detection (ours, documented): a robot that has not arrived is stuck when,
 over the last ``window`` steps of normal driving, its estimated distance to the goal
 shrank by less than ``progress_fraction · v_max · window · Δt`` (estimates are noisy, so a
 window is used instead of a single-step test), or when its projected goal coincides with
@@ -13,7 +13,11 @@ its estimate (an empty cell, where it holds still, does not count). The window r
 when a recovery starts, so the recovery's own steps count towards the next window: a
 recovery that did not lead to progress triggers the next one quickly (measured: in the
 ten-box layout, 30 seeds, 75 % of robots arrive, against 52 % when recovery steps are
-excluded).
+excluded). A stuck robot whose commanded speed averaged at least v_max/2 over the window
+is counted as a *livelock* (moving without progress: circling or oscillating with its
+neighbours), otherwise as a deadlock (held in place); both start the same recovery.
+With the liveness rules (:mod:`.liveness`) and obstacles, progress is measured along the
+roadmap path (:mod:`.navigation`) and the obstacle branch below is left to the roadmap.
 Recovery (appendix C): if an obstacle constraint is active at ``g*``, head for the vertex
 of that obstacle grown by ``r_s`` that minimises ``‖p̂ − v‖ + ‖v − g‖``, until the robot is
 there (at most ``4 · recover_steps`` steps). The caller grows the obstacles by the whole
@@ -31,8 +35,15 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .cell import Cells, Kind
-from .liveness import LivenessParams, ParkingState, parking_targets
-from .projection import project_onto_cells
+from .liveness import (
+    LivenessParams,
+    ParkingState,
+    blocked_by_robot,
+    parking_targets,
+    right_hand_goals,
+)
+from .navigation import Navigation
+from .projection import Projection, project_onto_cells
 
 NORMAL, ROTATE, VERTEX = 0, 1, 2
 _CLOCKWISE_90 = np.array([[0.0, 1.0], [-1.0, 0.0]])  # R_z(−90°)
@@ -59,10 +70,12 @@ class ControllerState:
     goal_dist_history: np.ndarray  # (window, N) ring buffer of estimated goal distances
     step: int = 0
     deadlocks: np.ndarray = field(default=None)
+    livelocks: np.ndarray = field(default=None)
+    speed_history: np.ndarray = field(default=None)  # (window, N) commanded speeds
     parking: ParkingState | None = None
 
     @classmethod
-    def initial(cls, n: int, window: int) -> "ControllerState":
+    def initial(cls, n: int, window: int) -> ControllerState:
         return cls(
             arrived=np.zeros(n, bool),
             mode=np.zeros(n, np.int8),
@@ -70,6 +83,8 @@ class ControllerState:
             target=np.zeros((n, 2)),
             goal_dist_history=np.full((max(window, 1), n), np.nan),
             deadlocks=np.zeros(n, np.int64),
+            livelocks=np.zeros(n, np.int64),
+            speed_history=np.zeros((max(window, 1), n)),
         )
 
 
@@ -86,6 +101,7 @@ def single_integrator_control(
     grown_obstacles: np.ndarray | None = None,
     liveness: LivenessParams | None = None,
     local_box: float = np.inf,
+    navigation: Navigation | None = None,
 ) -> tuple[np.ndarray, dict]:
     """Velocity commands ``(N, 2)`` for one control step; updates ``state`` in place.
 
@@ -93,34 +109,62 @@ def single_integrator_control(
     (padded by repetition), used by the obstacle branch of the heuristic. With
     ``liveness`` enabled, arrived robots yield to lingering neighbours
     (:mod:`.liveness`); their targets are projected onto their cells like every other.
-    Returns the commands and a dict with the projected goals, empty-cell mask and the
+    With ``navigation`` (:mod:`.navigation`), robots steer to the next vertex of their
+    shortest obstacle-free path instead of the goal itself, and progress is measured along
+    that path. Returns the commands and a dict with the projected goals, empty-cell mask and the
     robots newly detected in deadlock.
     """
     goal_dist = np.linalg.norm(goals - estimates, axis=1)
     state.arrived |= goal_dist <= goal_tolerance
-    working_goal = _working_goal(estimates, goals, state)
+    heading, to_go = (goals, goal_dist) if navigation is None else navigation.step(estimates)
+    working_goal = _working_goal(estimates, heading, state)
     moving_parked = np.zeros(len(goals), bool)
     if liveness is not None and liveness.enabled:
         if state.parking is None:
             state.parking = ParkingState.initial(len(goals))
-        parked_target, moving_parked = parking_targets(estimates, goals, state.arrived, state.parking, liveness, local_box)
+        parked_target, moving_parked = parking_targets(estimates, goals, state.arrived, state.parking, liveness, local_box, goal_tolerance)
         working_goal[state.arrived] = parked_target[state.arrived]
     proj = project_onto_cells(working_goal, cells)
+    if liveness is not None and liveness.enabled and liveness.right_hand_angle > 0:
+        proj = _right_hand(estimates, working_goal, proj, cells, state, liveness)
     target = np.where(proj.empty[:, None], estimates, proj.point)
     delta = target - estimates
     dist = np.linalg.norm(delta, axis=1)
     speed = np.minimum(v_max, dist / dt)
     u = np.where(dist[:, None] > 1e-12, delta * (speed / np.maximum(dist, 1e-300))[:, None], 0.0)
     u[state.arrived & ~moving_parked] = 0.0
-    stuck = _detect_deadlock(goal_dist, np.where(proj.empty, np.inf, dist), state, v_max, dt, deadlock)
+    state.speed_history[state.step % len(state.speed_history)] = np.linalg.norm(u, axis=1)
+    stuck = _detect_deadlock(to_go, np.where(proj.empty, np.inf, dist), state, v_max, dt, deadlock)
+    state.livelocks += stuck & (state.speed_history.mean(axis=0) >= 0.5 * v_max)
     if deadlock.enabled and stuck.any():
-        _start_recovery(stuck, estimates, goals, cells, proj.active, state, deadlock, grown_obstacles)
+        detours = grown_obstacles if navigation is None else None  # the roadmap already routes around obstacles
+        _start_recovery(stuck, estimates, heading, cells, proj.active, state, deadlock, detours)
     reached = (state.mode == VERTEX) & (np.linalg.norm(state.target - estimates, axis=1) <= max(goal_tolerance, float(np.max(v_max)) * dt))
     state.mode_left[reached] = 0
     state.mode_left -= state.mode != NORMAL
     state.mode[state.mode_left <= 0] = NORMAL
     state.step += 1
     return u, {"projected": proj.point, "empty": proj.empty, "deadlocked": stuck}
+
+
+def cell_rows(cells: Cells, rows: np.ndarray | slice) -> Cells:
+    """The cells of some robots only (an index array or a slice of the fleet)."""
+    return Cells(cells.A[rows], cells.b[rows], cells.valid[rows], cells.kind[rows], cells.source[rows])
+
+
+def _right_hand(estimates, working_goal, proj, cells: Cells, state: ControllerState, liveness: LivenessParams):
+    """Re-project, turned right (:func:`.liveness.right_hand_goals`), the goals of the
+    driving robots that a neighbour blocks (only their rows are projected again)."""
+    turn = blocked_by_robot(estimates, proj.active, cells, liveness.face_near) & ~state.arrived & (state.mode == NORMAL) & ~proj.empty
+    if not turn.any():
+        return proj
+    rows = np.flatnonzero(turn)
+    goals = right_hand_goals(estimates[rows], working_goal[rows], np.deg2rad(liveness.right_hand_angle))
+    turned = project_onto_cells(goals, cell_rows(cells, rows))
+    keep = rows[~turned.empty]
+    point, active = proj.point.copy(), proj.active.copy()
+    point[keep], active[keep] = turned.point[~turned.empty], turned.active[~turned.empty]
+    return Projection(point, proj.empty, active)
 
 
 def _working_goal(estimates, goals, state: ControllerState) -> np.ndarray:

@@ -19,11 +19,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..core.family import Guarantee
+from ..core.family import Guarantee, expect_spec
 from ..core.rng import as_generator
 from ..core.spec_blocks import is_convex
 from .cell import Cells
-from .simulation import cell_model, ground_section, method_setup, team_rows
+from .controller import cell_rows
+from .simulation import cell_model, ground_section, method_setup
 from .spec import Spec, TeamSpec, initial_layout
 
 LAYOUT_CHECK_SEED = 0
@@ -52,6 +53,7 @@ def check(spec: Spec) -> list[Guarantee]:
         Chance-constrained method, convex geometry, starts inside the cells,
         controllers keep the cells, and the resulting per-step collision bound.
     """
+    expect_spec(spec, Spec, "avoidance")  # input validation: a validated avoidance scenario
     premises = [chance_constrained_method(spec), convex_geometry(spec), starts_inside_cells(spec), controllers_keep_cells(spec)]
     return premises + [per_step_bound(spec, premises)]
 
@@ -116,7 +118,7 @@ def starts_inside_cells(spec: Spec) -> Guarantee:
 
 def team_cells(cells: Cells, team: TeamSpec, index: slice, spec: Spec) -> Cells:
     """A team's rows of the fleet's cells (the ground-plane section for ground robots in 3-D)."""
-    rows = team_rows(cells, index)
+    rows = cell_rows(cells, index)
     return ground_section(rows, spec.ground_height()) if spec.space3d is not None and not team.flying else rows
 
 

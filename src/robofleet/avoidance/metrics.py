@@ -32,8 +32,9 @@ RESULTS: dict[str, str] = {
     "mean_travel_time": "mean arrival time over the robots that arrived [s]",
     "median_step_seconds": "median compute time of one step for the whole team (cells + controllers) [s]",
     "deadlock_detections": "deadlocks detected by the heuristic of appendix C (robot-events)",
+    "livelock_detections": "of those, single-integrator detections while the robot was moving (mean commanded speed ≥ v_max/2 over the window): livelocks",
     "empty_cell_steps": "robot-steps whose cell was empty (the robot held still)",
-    "mpc_fallback_steps": "robot-steps where the MPC plan left the cell and the safe fallback input was applied",
+    "mpc_fallback_steps": "robot-steps where the MPC found no in-cell plan and applied the least-violating plan (or braking) instead",
     "mpc_fallback_share": "MPC fallback robot-steps over the robot-steps an MPC solved for (robots not yet arrived); null without MPC",
     "pair_step_rate": "colliding (pair, step) couples over all couples, the frequency the chance constraint bounds by δ",
     "pair_rate": "share of robot pairs that collided at least once",
@@ -56,6 +57,7 @@ class ControllerCounts:
     """What the controllers counted during a run."""
 
     deadlock_detections: int = 0
+    livelock_detections: int = 0
     empty_cell_steps: int = 0
     mpc_fallback_steps: int = 0
     mpc_solve_steps: int = 0
@@ -184,8 +186,8 @@ def run_results(
         out["min_obstacle_distance"] = nearest
         out["collision_steps"] = int(pair_contacts + obstacle_hits)
         out["success"] = bool(out["success"] and obstacle_hits == 0)
-    out.update(deadlock_detections=counts.deadlock_detections, empty_cell_steps=counts.empty_cell_steps,
-               mpc_fallback_steps=counts.mpc_fallback_steps,
+    out.update(deadlock_detections=counts.deadlock_detections, livelock_detections=counts.livelock_detections,
+               empty_cell_steps=counts.empty_cell_steps, mpc_fallback_steps=counts.mpc_fallback_steps,
                mpc_fallback_share=counts.mpc_fallback_steps / counts.mpc_solve_steps if counts.mpc_solve_steps else None)
     out.update(collision_frequencies(positions.shape[1], len(positions), pair_contacts, out["collisions"], obstacle_hits))
     out.update(close_pair_frequencies(positions, radius))

@@ -8,20 +8,53 @@ Each control step robot ``i`` solves ::
                 A p_k ≤ b,   k = 1 … N                      (every predicted position in the
                                                              current B-UAVC)
                 u_lo ≤ u_k ≤ u_hi (and the model's norm limits)
+                quadrotor: |v_xy,k| ≤ v_max (inscribed 8-gon),  v_N = 0, φ_N = θ_N = 0
 
-and applies ``u_0``. The problem is built **once** per (model, horizon, max constraints):
-the cell enters as parameters ``A (M × d)``, ``b (M)``; unused rows are padded with the
-always-true ``0·p ≤ 1``. Linear models (single and double integrator) are solved as a QP
-(qpOASES through casadi's ``qpsol``), nonlinear ones (unicycle, quadrotor) as an NLP with
-IPOPT (``nlpsol``), warm-started from the previous plan shifted by one step, or, with
-``solver: rti``, by the real-time-iteration SQP of :mod:`.rti` (dense QPs, DAQP by default).
+and applies ``u_0``. Linear models (single and double integrator) are solved as a QP
+(qpOASES through casadi's ``qpsol``, built **once** per (model, horizon, max constraints):
+the cell enters as parameters ``A (M × d)``, ``b (M)``, unused rows padded with the
+always-true ``0·p ≤ 1``). Nonlinear ones (unicycle, quadrotor) are solved by default
+(``solver: rti``) with the braking-safe real-time-iteration SQP of :mod:`.rti` (condensed
+Gauss–Newton QPs around the previous plan shifted by one step, solved by DAQP, every cell
+row the plan can reach), or (``solver: ipopt``) as the full NLP with IPOPT (``nlpsol``),
+warm-started from the shifted plan.
 
-The returned inputs are rolled out with the model's discrete step (the simulator's
-equations); when that rollout
-leaves the cell (e.g. IPOPT stopped at its iteration cap), the previous plan shifted by
-one step is used if its rollout stays in the new cell; otherwise the robot applies its model's safe
-fallback (zero input; for the double integrator the brake of :mod:`.braking`; for the
-quadrotor a tilt against its horizontal velocity, zero climb: :func:`~robofleet.dynamics.quadrotor.braking_control`).
+A plan is *in the cell* when its inputs, rolled out with the model's discrete step (the
+simulator's equations), keep every predicted position in the cell; only such a step counts
+as solved (``mpc_status`` 0). Without one — the estimate lies outside its cell (its first
+predicted position is fixed by the current velocity), or no plan can stop inside a cell
+that shrank — the step is a fallback (``mpc_status`` 1): the IPOPT path first tries the
+previous plan shifted by one step; nonlinear models then apply the SQP's least-violating
+plan, which re-enters the cell as early as the dynamics allow; only if that fails (and for
+the linear models) the robot applies its model's safe fallback (zero input; for the double
+integrator the brake of :mod:`.braking`; for the quadrotor a tilt against its horizontal
+velocity, zero climb: :func:`~robofleet.dynamics.quadrotor.braking_control`).
+
+Our additions to the paper's formulation (issue 10; the paper gives no details of its
+quadrotor MPC beyond "every predicted position in the current B-UAVC"):
+
+* the **terminal rest set** ``v_N = 0, φ_N = θ_N = 0`` (``terminal_rest``, within
+  ``rest_tolerance``) for the quadrotor: every plan contains a way to stop inside the cell
+  it was planned in, and its shifted continuation by the zero input stays there (the
+  terminal-set argument of Mayne et al. 2000). Without it plans ended at full speed on the
+  cell boundary, and the robot had no plan once the cell shrank;
+* the **speed limit** ``|v_xy| ≤ v_max`` of the quadrotor's team (``speed_limit``; before,
+  the quadrotor MPC ignored ``v_max`` and flew at up to 4.5 m/s, where the 1 s horizon and
+  the 2 m local box no longer leave room to stop);
+* the **least-violating plan** instead of pure braking when no in-cell plan exists (an
+  exact ℓ1 penalty on the cell constraints, :mod:`.rti`);
+* the **noise band** (``'rti'`` path): predicted positions of stages ``2 … N`` prefer to
+  keep ``noise_band · σ`` from the cell's faces (``σ`` = the robot's position noise, largest
+  standard deviation; shrunk linearly to 0 within one plan's reach of the goal, ``N·Δt·v_max``,
+  so that a goal near a face stays reachable; a soft tightening, traded against the goal). The
+  cell is rebuilt every step from fresh estimates, so a robot that parks on a face finds
+  its next estimate outside its next cell about half of the time; with the band it parks
+  a little inside. Stage 1 — where B-UAVC's chance constraint acts — keeps the exact cell.
+* ``'rti'`` uses every valid cell row (the QP drops the rows no admissible plan reaches),
+  the casadi solvers the ``max_constraints`` tightest.
+* robots that have arrived keep solving toward their goal (before, they braked and
+  ignored their cell, and a hovering quadrotor drifted into a passing ground robot); their
+  steps are ``mpc_status`` 2 and not counted in the fallback share.
 
 Deadlock (appendix C, :class:`GoalRotation`): when a robot that has not arrived moves
 less than ``Δp_min`` over the last ``n_dead`` steps, its goal is rotated clockwise by
@@ -34,20 +67,21 @@ the input sequence undetermined; the small weight selects the least-effort plan.
 from __future__ import annotations
 
 import contextlib
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable, Literal
+from typing import Literal
 
 import numpy as np
 from pydantic import Field
 
+from ..core.config import SpecModel
 from ..core.errors import ConfigError
+from ..core.output import quiet_stdout
 from ..dynamics import double_integrator as di
 from ..dynamics import quadrotor as quad
 from ..dynamics import unicycle as uni
-from ..core.config import SpecModel
-from ..core.output import quiet_stdout
 from .braking import braking_control
-from .rti import CondensedSQP
+from .rti import CondensedSQP, SQPResult, StateLimit
 
 ModelName = Literal["single_integrator", "double_integrator", "unicycle", "quadrotor"]
 MODEL_NAMES = ("single_integrator", "double_integrator", "unicycle", "quadrotor")
@@ -67,18 +101,21 @@ class MPCConfig(SpecModel):
     """Parameters of the B-UAVC MPC."""
 
     horizon: int = Field(10, gt=0, description="N, number of predicted steps")
-    max_constraints: int = Field(12, gt=0, description="cell rows the problem is built for")
+    max_constraints: int = Field(12, gt=0, description="cell rows the problem is built for ('ipopt' and linear models; "
+                                 "'rti' keeps every row the plan can reach)")
     input_weight: float = Field(1e-3, ge=0, description="w_u")
     deadlock_steps: int = Field(20, gt=0, description="n_dead")
     deadlock_progress: float = Field(0.2, ge=0, description="Δp_min [m]: least net displacement over n_dead steps")
     recover_steps: int = Field(10, gt=0, description="steps with the rotated goal")
     max_iter: int = Field(30, gt=0, description="IPOPT iteration cap (nonlinear models)")
-    solver: Literal["ipopt", "rti"] = Field("ipopt", description="nonlinear models: 'ipopt' (full NLP) or 'rti' "
-                                            "(condensed Gauss-Newton SQP around the shifted plan, robofleet.avoidance.rti)")
-    qp_solver: Literal["daqp", "qpoases", "osqp"] = Field("daqp", description="QP solver of the 'rti' path")
+    solver: Literal["ipopt", "rti"] = Field("rti", description="nonlinear models: 'rti' (braking-safe condensed "
+                                            "Gauss-Newton SQP around the shifted plan, DAQP QPs, robofleet.avoidance.rti) "
+                                            "or 'ipopt' (the full NLP)")
     sqp_iterations: int = Field(3, gt=0, description="most QPs per solve on the 'rti' path (1 = pure real-time iteration)")
-    terminal_speed: float | None = Field(None, gt=0, description="'rti' path, quadrotor: bound on each final velocity "
-                                         "component [m/s] (null = none)")
+    terminal_rest: bool = Field(True, description="quadrotor: the plan ends at rest, level (v_N = 0, φ_N = θ_N = 0)")
+    rest_tolerance: float = Field(0.02, gt=0, description="|v_N|, |φ_N|, |θ_N| bound of terminal_rest [m/s, rad]")
+    noise_band: float = Field(2.0, ge=0, description="'rti' path: soft tightening of stages 2…N, in units of the "
+                              "robot's position σ")
 
 
 class SingleIntegratorParams(SpecModel):
@@ -105,11 +142,26 @@ class ModelAdapter:
     u_hi: np.ndarray
     norm_limits: tuple  # ((kind "u"|"x", slice, limit), ...)
     fallback: Callable  # (states (n, nx)) -> controls (n, nu)
+    rest: slice | None = None  # state components that vanish at rest under the zero input
+
+
+@dataclass(frozen=True)
+class PlanResult:
+    """One robot-step's outcome: the input to apply (``None``: the model's safe fallback),
+    the inputs ``(N, nu)`` and predicted positions ``(N+1, d)`` of the applied plan, and
+    whether every predicted position lies in the cell (else the plan is the least-violating
+    one, or there is none)."""
+
+    control: np.ndarray | None
+    positions: np.ndarray | None
+    in_cell: bool
+    inputs: np.ndarray | None = None
 
 
 def model_adapter(name: str, params: SingleIntegratorParams | di.DoubleIntegratorParams | uni.UnicycleParams | quad.QuadrotorParams,
-                  dim: int, dt: float) -> ModelAdapter:
-    """The :class:`ModelAdapter` of model ``name`` (one of :data:`MODEL_NAMES`)."""
+                  dim: int, dt: float, speed_limit: float | None = None) -> ModelAdapter:
+    """The :class:`ModelAdapter` of model ``name`` (one of :data:`MODEL_NAMES`); ``speed_limit``
+    bounds the quadrotor's horizontal speed (the other models carry theirs in ``params``)."""
     inf = np.inf
     if name == "single_integrator":
         return ModelAdapter(name, dim, dim, dim, True, lambda x, u: x + u * dt, np.full(dim, -inf), np.full(dim, inf),
@@ -123,8 +175,16 @@ def model_adapter(name: str, params: SingleIntegratorParams | di.DoubleIntegrato
         return ModelAdapter(name, 3, 2, 2, False, lambda x, u: uni.symbolic_step(x, u, dt, params), -hi, hi, (), lambda s: np.zeros((len(s), 2)))
     if name == "quadrotor":
         lo, hi = params.control_bounds()
-        return ModelAdapter(name, 9, 4, 3, False, lambda x, u: quad.symbolic_step(x, u, dt, params), lo, hi, (), lambda s: quad.braking_control(s, params))
+        limits = () if speed_limit is None else (("x", slice(3, 5), speed_limit),)
+        return ModelAdapter(name, 9, 4, 3, False, lambda x, u: quad.symbolic_step(x, u, dt, params), lo, hi, limits,
+                            lambda s: quad.braking_control(s, params), rest=slice(3, 8))
     raise ConfigError(f"model: expected one of {list(MODEL_NAMES)}, received {name!r}")
+
+
+def _polygon_rows(limit: float, dim: int) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_polygon` as normals and one offset per row."""
+    normals, offset = _polygon(limit, dim)
+    return normals, np.full(len(normals), offset)
 
 
 def _polygon(limit: float, dim: int) -> tuple[np.ndarray, float]:
@@ -150,14 +210,18 @@ class BuavcMPC:
     dt : control period
     config : :class:`MPCConfig`
     n_robots : how many robots share this controller (each keeps its own warm start)
+    speed_limit : the quadrotor's horizontal speed limit (the team's ``v_max``; ``None``: none)
     """
 
-    def __init__(self, model: str, params, *, dim: int, dt: float, config: MPCConfig, n_robots: int):
+    def __init__(self, model: str, params, *, dim: int, dt: float, config: MPCConfig, n_robots: int,
+                 speed_limit: float | None = None, position_sigma: float = 0.0):
         if model not in MODEL_NAMES:
             raise ConfigError(f"model: expected one of {list(MODEL_NAMES)}, received {model!r}")
         if config.horizon <= 0:
             raise ConfigError(f"horizon: expected an integer > 0, received {config.horizon!r}")
-        self.model = model_adapter(model, params, dim, dt)
+        self.model = model_adapter(model, params, dim, dt, speed_limit)
+        self.band = config.noise_band * position_sigma
+        self.reach = config.horizon * dt * (1.0 if speed_limit is None else speed_limit)  # how far one plan can go
         self.config = config
         self.dt = dt
         self.n_robots = n_robots
@@ -185,7 +249,7 @@ class BuavcMPC:
         x0, goal = P[: m.nx], P[m.nx : m.nx + m.dim]
         A = ca.reshape(P[m.nx + m.dim : m.nx + m.dim + M * m.dim], M, m.dim)
         b = P[m.nx + m.dim + M * m.dim :]
-        pos = lambda x: x[: m.dim]  # noqa: E731 — positions lead every model's state
+        pos = lambda x: x[: m.dim]
         start = pos(x0)
         scale = ca.fmax(ca.sumsqr(goal - start), 1.0)
         cost = ca.sumsqr(goal - pos(X[:, N])) / scale + self.config.input_weight / N * ca.sumsqr(U)
@@ -196,6 +260,9 @@ class BuavcMPC:
             for k in range(N):
                 vec = U[sl, k] if kind == "u" else X[sl, k + 1]
                 ineq.append(ca.mtimes(ca.DM(normals), vec) - offset)
+        rest = self._rest_slice()
+        if rest is not None:  # the terminal rest set (see the module docstring)
+            ineq += [X[rest, N] - self.config.rest_tolerance, -X[rest, N] - self.config.rest_tolerance]
         g = ca.vertcat(*eq, *ineq)
         z = ca.vertcat(ca.vec(X), ca.vec(U))
         n_eq = sum(e.numel() for e in eq)
@@ -212,18 +279,12 @@ class BuavcMPC:
         self._rollout = ca.Function("rollout", [xs, us], [ca.horzcat(*states)])
         self._step = ca.Function("step", [xs, us[:, 0]], [m.step(xs, us[:, 0])])
         self._first_solve = True
-        self._sqp = None
-        if not m.linear and self.config.solver == "rti":
-
-            self._sqp = CondensedSQP(m.step, nx=m.nx, nu=m.nu, dim=m.dim, horizon=N, u_lo=m.u_lo, u_hi=m.u_hi,
-                                     input_weight=self.config.input_weight, qp_solver=self.config.qp_solver,
-                                     iterations=self.config.sqp_iterations,
-                                     terminal=slice(3, 6) if m.name == "quadrotor" else None,
-                                     terminal_bound=np.inf if self.config.terminal_speed is None else self.config.terminal_speed)
-        elif m.linear:
+        self._sqp = None if m.linear else self._condensed_sqp()  # the 'rti' solver, and the recovery of 'ipopt'
+        self._solver = None
+        if m.linear:
             with quiet_stdout():  # qpOASES prints its licence banner on construction
                 self._solver = ca.qpsol("buavc_mpc", QP_SOLVER, problem, QP_OPTIONS[QP_SOLVER])
-        else:
+        elif self.config.solver == "ipopt":
             self._solver = ca.nlpsol("buavc_mpc", "ipopt", problem, {
                 "print_time": False, "error_on_fail": False,
                 "ipopt": {"print_level": 0, "sb": "yes", "max_iter": self.config.max_iter, "tol": 1e-6,
@@ -232,12 +293,26 @@ class BuavcMPC:
                           "warm_start_mult_bound_push": 1e-9},
             })
 
+    def _rest_slice(self) -> slice | None:
+        """The state components that must vanish at the end of the plan (``terminal_rest``)."""
+        return self.model.rest if self.config.terminal_rest else None
+
+    def _condensed_sqp(self) -> CondensedSQP:
+        """The :class:`~.rti.CondensedSQP` of this model with its speed limit and rest set."""
+        m = self.model
+        limits = tuple(StateLimit(sl, *_polygon_rows(limit, sl.stop - sl.start)) for kind, sl, limit in m.norm_limits if kind == "x")
+        return CondensedSQP(m.step, nx=m.nx, nu=m.nu, dim=m.dim, horizon=self.config.horizon, u_lo=m.u_lo, u_hi=m.u_hi,
+                            input_weight=self.config.input_weight, iterations=self.config.sqp_iterations, limits=limits,
+                            rest=self._rest_slice(), rest_tolerance=self.config.rest_tolerance)
+
     # ------------------------------------------------------------------ per-step solve
     def cell_parameters(self, A: np.ndarray, b: np.ndarray, valid: np.ndarray, position: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """One robot's cell as ``(M, d)``, ``(M,)`` parameters: its valid rows (the
-        ``max_constraints`` tightest at ``position`` if there are more), padded with ``0·p ≤ 1``."""
-        M, d = self.config.max_constraints, self.model.dim
+        """One robot's cell as ``(M, d)``, ``(M,)`` parameters: its valid rows (for the casadi
+        solvers, built for ``M = max_constraints``, the ``M`` tightest at ``position`` if there
+        are more), padded with ``0·p ≤ 1``. The ``'rti'`` path takes every valid row: its QP
+        drops the rows no admissible plan reaches by itself (:mod:`.rti`)."""
         rows = np.flatnonzero(valid)
+        M, d = self.config.max_constraints if self._solver is not None else max(len(rows), 1), self.model.dim
         if len(rows) > M:
             slack = b[rows] - A[rows] @ position
             rows = rows[np.argsort(slack)[:M]]
@@ -247,14 +322,24 @@ class BuavcMPC:
         bp[: len(rows)] = b[rows]
         return Ap, bp
 
-    def plan(self, robot: int, state: np.ndarray, goal: np.ndarray, A: np.ndarray, b: np.ndarray) -> tuple[np.ndarray | None, np.ndarray | None]:
+    def plan(self, robot: int, state: np.ndarray, goal: np.ndarray, A: np.ndarray, b: np.ndarray) -> PlanResult:
         """Solve robot ``robot``'s problem from ``state`` toward ``goal`` in the cell ``(A, b)``
-        (already padded to ``max_constraints``). Returns ``(u_0, predicted positions (N+1, d))``,
-        or ``(None, None)`` when the inputs, simulated with the model's own step, leave the cell."""
-        m, N = self.model, self.config.horizon
+        (as :meth:`cell_parameters` gives it). A plan counts as in the cell when its inputs,
+        simulated with the model's own step, keep every predicted position in the cell;
+        nonlinear models without one apply the least-violating plan of :class:`~.rti.CondensedSQP`."""
         z0 = self._initial_guess(robot, state)
-        if self._sqp is not None:
+        if self._solver is None:
             return self._plan_rti(robot, state, goal, A, b, z0)
+        result = self._plan_exact(robot, state, goal, A, b, z0)
+        if result.in_cell or self._sqp is None:
+            return result
+        return self._plan_rti(robot, state, goal, A, b, z0)  # IPOPT found no in-cell plan: the SQP as recovery
+
+    def _plan_exact(self, robot: int, state: np.ndarray, goal: np.ndarray, A: np.ndarray, b: np.ndarray,
+                    z0: np.ndarray) -> PlanResult:
+        """:meth:`plan` with the casadi solver (qpOASES for linear models, IPOPT otherwise); the
+        previous plan, shifted by one step, when the solution leaves the cell and it does not."""
+        m, N = self.model, self.config.horizon
         p = np.concatenate([state, goal, A.T.ravel(), b - CELL_MARGIN])  # casadi reshape is column-major
         with quiet_stdout() if self._first_solve else contextlib.nullcontext():  # and on first use
             sol = self._solver(x0=z0, p=p, lbx=self._lbz, ubx=self._ubz, lbg=self._lbg, ubg=self._ubg, lam_g0=self._lam_g[robot])
@@ -265,32 +350,40 @@ class BuavcMPC:
         if positions is not None and np.all(positions[1:] @ A.T <= b + _CELL_TOL):
             self._warm[robot] = z
             self._lam_g[robot] = np.asarray(sol["lam_g"]).ravel()
-            return U[0], positions
+            return PlanResult(U[0], positions, True, U)
         # the previous plan, shifted by one step, is still a valid plan if it stays in the new cell
         shifted = z0[m.nx * (N + 1) :].reshape(N, m.nu)
         positions = self.rollout(state, shifted)[:, : m.dim]
         if np.all(np.isfinite(self._warm[robot])) and np.all(positions[1:] @ A.T <= b + _CELL_TOL):
             self._warm[robot] = z0
-            return shifted[0], positions
+            return PlanResult(shifted[0], positions, True, shifted)
         self._warm[robot] = np.nan
         self._lam_g[robot] = 0.0
-        return None, None
+        return PlanResult(None, None, False)
 
     def _plan_rti(self, robot: int, state: np.ndarray, goal: np.ndarray, A: np.ndarray, b: np.ndarray,
-                  z0: np.ndarray) -> tuple[np.ndarray | None, np.ndarray | None]:
-        """:meth:`plan` on the ``'rti'`` path: SQP from the shifted previous inputs
-        (:class:`~.rti.CondensedSQP`), each iterate accepted only if its exact rollout stays in the cell."""
+                  z0: np.ndarray) -> PlanResult:
+        """:meth:`plan` with :class:`~.rti.CondensedSQP` from the shifted previous inputs; when
+        that finds no in-cell plan although the estimate lies in its cell, a second start from
+        the braking manoeuvre (a linearization point that stops in time). Without an in-cell
+        plan the least-violating one is applied."""
         m, N = self.model, self.config.horizon
         reference = z0[m.nx * (N + 1):].reshape(N, m.nu)
-        U = self._sqp.solve(state, goal, A, b, reference, margin=CELL_MARGIN, tolerance=_CELL_TOL)
-        if U is None:  # second start: the braking manoeuvre, a linearization point that stops in time
-            U = self._sqp.solve(state, goal, A, b, self.fallback_inputs(state), margin=CELL_MARGIN, tolerance=_CELL_TOL)
-        if U is None:
-            self._warm[robot] = np.nan
-            return None, None
-        X = self.rollout(state, U)
-        self._warm[robot] = np.concatenate([X.ravel(), U.ravel()])
-        return U[0], X[:, : m.dim]
+        result = self._sqp_solve(state, goal, A, b, reference)
+        if not result.in_cell and np.all(A @ state[: m.dim] <= b):
+            second = self._sqp_solve(state, goal, A, b, self.fallback_inputs(state))
+            if second.in_cell or second.violation < result.violation:
+                result = second
+        X = self.rollout(state, result.inputs)
+        self._warm[robot] = np.concatenate([X.ravel(), result.inputs.ravel()])
+        self._lam_g[robot] = 0.0
+        return PlanResult(result.inputs[0], X[:, : m.dim], result.in_cell, result.inputs)
+
+    def _sqp_solve(self, state: np.ndarray, goal: np.ndarray, A: np.ndarray, b: np.ndarray, reference: np.ndarray) -> SQPResult:
+        """:meth:`~.rti.CondensedSQP.solve` with the noise band, shrunk linearly to 0 within one
+        plan's reach of the goal (so that a goal near a face stays reachable)."""
+        band = self.band * min(1.0, float(np.linalg.norm(goal - state[: self.model.dim])) / self.reach)
+        return self._sqp.solve(state, goal, A, b, reference, margin=CELL_MARGIN, tolerance=_CELL_TOL, band=band)
 
     def fallback_inputs(self, state: np.ndarray) -> np.ndarray:
         """Inputs ``(N, nu)`` of the model's safe fallback applied in closed loop from ``state``
@@ -318,16 +411,20 @@ class BuavcMPC:
         X = prev[: m.nx * (N + 1)].reshape(N + 1, m.nx)
         U = prev[m.nx * (N + 1) :].reshape(N, m.nu)
         X = np.vstack([state, X[2:], X[-1:]])
-        U = np.vstack([U[1:], U[-1:]])
+        # a model with a rest set continues with the zero input, which holds it there
+        U = np.vstack([U[1:], np.zeros((1, m.nu)) if m.rest is not None else U[-1:]])
         return np.concatenate([X.ravel(), U.ravel()])
 
     def control(self, states: np.ndarray, goals: np.ndarray, A: np.ndarray, b: np.ndarray, valid: np.ndarray, *, arrived: np.ndarray | None = None) -> tuple[np.ndarray, dict]:
         """Controls ``(n, nu)`` for all robots of this model (one solve per robot).
 
         ``states (n, nx)`` are the robots' state estimates, ``goals (n, d)``, cells
-        ``A (n, M', d)``, ``b (n, M')``, ``valid (n, M')``; ``arrived`` robots get the fallback.
-        Returns the controls and ``{"plans": (n, N+1, d) NaN where none, "fallback": (n,) bool,
-        "goals": the working goals}``.
+        ``A (n, M', d)``, ``b (n, M')``, ``valid (n, M')``. ``arrived`` robots keep solving (their
+        plans hold them at their goal inside their cell, so a neighbour's cell can push them
+        aside); their steps are not counted as fallbacks.
+        Returns the controls and ``{"plans": (n, N+1, d) the in-cell plans, NaN where none,
+        "fallback": (n,) bool, no in-cell plan, "recovery": (n,) bool, of those the robots that
+        apply the least-violating plan (the others brake), "goals": the working goals}``.
         """
         m, N = self.model, self.config.horizon
         n = len(states)
@@ -335,15 +432,18 @@ class BuavcMPC:
         working = self._working_goals(positions, goals, arrived)
         controls = m.fallback(states)
         plans = np.full((n, N + 1, m.dim), np.nan)
-        fallback = np.ones(n, bool)
+        fallback, recovery = np.ones(n, bool), np.zeros(n, bool)
         todo = np.ones(n, bool) if arrived is None else ~arrived
-        for i in np.flatnonzero(todo):
+        for i in range(n):
             Ai, bi = self.cell_parameters(A[i], b[i], valid[i], positions[i])
-            u, plan = self.plan(i, states[i], working[i], Ai, bi)
-            if u is not None:
-                controls[i], plans[i], fallback[i] = u, plan, False
+            result = self.plan(i, states[i], working[i], Ai, bi)
+            if result.control is not None:
+                controls[i] = result.control
+            if result.in_cell:
+                plans[i], fallback[i] = result.positions, False
+            recovery[i] = result.control is not None and not result.in_cell
         self.infeasible += fallback & todo
-        return controls, {"plans": plans, "fallback": fallback & todo, "goals": working}
+        return controls, {"plans": plans, "fallback": fallback & todo, "recovery": recovery & todo, "goals": working}
 
     def _working_goals(self, positions: np.ndarray, goals: np.ndarray, arrived) -> np.ndarray:
         return self.rotation.working_goals(positions, goals, arrived)

@@ -1,10 +1,11 @@
 """Optimal reciprocal collision avoidance (ORCA) — J. van den Berg, S. J. Guy, M. Lin,
 D. Manocha, "Reciprocal n-body collision avoidance", Robotics Research (STAR 70), 2011.
 
-The baseline of Zhu et al. 2022 for holonomic robots, vectorized over agents:
+The baseline of Zhu et al. 2022 for holonomic robots. One step, per agent (compiled,
+agents in parallel, :func:`orca_velocities`):
 
-1. *Neighbours* — up to ``max_neighbors`` nearest agents within ``neighbor_dist``
-   (k-d tree).
+1. *Neighbours* — up to ``max_neighbors`` nearest agents closer than ``neighbor_dist``,
+   nearest first (uniform grid, :func:`~.neighbours.nearest_neighbours`).
 2. *ORCA half-planes* (Sec. 4 of the paper, Eq. (5)): for agents A, B with relative
    position ``p = p_B − p_A``, relative velocity ``v = v_A − v_B``, combined radius
    ``r`` and horizon ``τ``, the velocity obstacle ``VO^τ`` is the cone from the origin
@@ -12,14 +13,21 @@ The baseline of Zhu et al. 2022 for holonomic robots, vectorized over agents:
    vector from ``v`` to the closest point of ``∂VO^τ`` and ``n`` the outward normal
    there; ``ORCA_A = {v' : (v' − (v_A + u/2))·n ≥ 0}``. Agents already overlapping use
    the cut-off disc ``D(p/Δt, r/Δt)`` (resolve within one step).
-3. *Velocity selection* (Eq. (6)): the velocity nearest to ``v_pref`` in
-   ``D(0, v_max) ∩ ⋂ ORCA``. This 2-D program is solved exactly for all agents at once
-   by candidate enumeration: the optimum is either ``v_pref`` clipped to the speed disc
-   or the projection of ``v_pref`` onto one constraint line restricted to the feasible
-   interval cut by the disc and the other half-planes. When the program is infeasible
-   (dense crowds), Sec. 5.2's fallback is used: the velocity minimising the largest
-   violation, found exactly for all infeasible agents at once by enumerating the
-   candidates the optimality conditions allow (:func:`least_violation_velocities`).
+3. *Velocity selection* (Eq. (6), Sec. 5.1): the velocity nearest to ``v_pref`` in
+   ``D(0, v_max) ∩ ⋂ ORCA``, by the incremental 2-D linear program of the paper: take
+   the optimum so far; when the next half-plane excludes it, the new optimum lies on
+   that half-plane's line, a 1-D program over the interval the disc and the earlier
+   half-planes leave on it (O(K) expected per agent, K ≤ ``max_neighbors``).
+4. *Infeasible programs* (Sec. 5.2, dense crowds): the velocity minimising the largest
+   violation ``max_k n_k·(q_k − v)`` over the disc, a 3-D linear program solved by the
+   same incremental scheme — when half-plane k is violated by more than the current
+   maximum, the new optimum makes k the largest violation, i.e. it maximises ``n_k·v``
+   over the disc and the lines ``{v : n_j·(q_j − v) ≤ n_k·(q_k − v)}``, j < k (a 2-D
+   program with a linear objective).
+
+The vectorized forms :func:`orca_halfplanes`, :func:`solve_velocity_lp` and
+:func:`least_violation_velocities` (exact enumeration of the optimality conditions) are
+kept as independent references the tests compare the kernel against.
 """
 
 from __future__ import annotations
@@ -27,9 +35,11 @@ from __future__ import annotations
 import numba
 import numpy as np
 from pydantic import Field
-from scipy.spatial import cKDTree
 
 from ..core.config import SpecModel
+from ..core.errors import ConfigError
+from .kernels import use_parallel
+from .neighbours import nearest_neighbours
 
 _EPS = 1e-12
 
@@ -43,15 +53,15 @@ class OrcaParams(SpecModel):
 
 
 def neighbours(positions: np.ndarray, params: OrcaParams) -> tuple[np.ndarray, np.ndarray]:
-    """Indices ``(N, K)`` of each agent's nearest neighbours and a validity mask ``(N, K)``."""
+    """Indices ``(N, K)`` of each agent's nearest neighbours (closer than
+    ``neighbor_dist``, nearest first) and a validity mask ``(N, K)``."""
     n = len(positions)
     k = min(params.max_neighbors, n - 1)
     if k <= 0:
         return np.zeros((n, 0), dtype=np.intp), np.zeros((n, 0), dtype=bool)
-    dist, idx = cKDTree(positions).query(positions, k=k + 1, distance_upper_bound=params.neighbor_dist)
-    dist, idx = dist[:, 1:], idx[:, 1:]
-    ok = np.isfinite(dist) & (idx < n)
-    return np.where(ok, idx, 0), ok
+    idx, count = nearest_neighbours(positions, k, params.neighbor_dist)
+    ok = np.arange(k)[None] < count[:, None]
+    return np.where(ok, idx, 0).astype(np.intp), ok
 
 
 def orca_halfplanes(rel_pos: np.ndarray, rel_vel: np.ndarray, own_vel: np.ndarray, radius: float | np.ndarray, tau: float, dt: float) -> tuple[np.ndarray, np.ndarray]:
@@ -100,7 +110,7 @@ def solve_velocity_lp(q: np.ndarray, n: np.ndarray, valid: np.ndarray, v_pref: n
     Returns the velocities ``(N, 2)`` and a feasibility mask ``(N,)``; infeasible agents
     get ``v_pref`` clipped (the caller applies the fallback).
     """
-    N, K, _ = q.shape
+    N = q.shape[0]
     vmax = np.broadcast_to(np.asarray(v_max, dtype=float), (N,))
     # inactive (padded) constraints: n·v ≥ −1e9, never binding
     n = np.where(valid[..., None], n, np.array([1.0, 0.0]))
@@ -208,7 +218,7 @@ def _least_violation(q, n, valid, v_max, out):
 
 
 def orca_velocities(positions: np.ndarray, velocities: np.ndarray, v_pref: np.ndarray, radius: float | np.ndarray, v_max: float | np.ndarray, params: OrcaParams, dt: float) -> tuple[np.ndarray, np.ndarray]:
-    """New velocities ``(N, 2)`` of every agent (one ORCA step, all agents at once).
+    """New velocities ``(N, 2)`` of every agent (one ORCA step; see the module docstring).
 
     Parameters
     ----------
@@ -222,19 +232,166 @@ def orca_velocities(positions: np.ndarray, velocities: np.ndarray, v_pref: np.nd
     -------
     velocities : (N, 2)
     infeasible : (N,) bool, agents that used the least-violation fallback
+
+    Each agent reads only the others' positions and velocities, so the agents run in
+    parallel (:mod:`.kernels`) with the same result on any number of threads.
     """
-    pos = np.asarray(positions, dtype=float)
-    vel = np.asarray(velocities, dtype=float)
+    pos = np.ascontiguousarray(positions, dtype=np.float64)
+    vel = np.ascontiguousarray(velocities, dtype=np.float64)
+    pref = np.ascontiguousarray(v_pref, dtype=np.float64)
     N = len(pos)
-    rad = np.broadcast_to(np.asarray(radius, dtype=float), (N,))
-    vmax = np.broadcast_to(np.asarray(v_max, dtype=float), (N,))
-    idx, valid = neighbours(pos, params)
-    q, n = orca_halfplanes(pos[idx] - pos[:, None, :], vel[:, None, :] - vel[idx], vel[:, None, :], rad[:, None] + rad[idx], params.time_horizon, dt)
-    new, feasible = solve_velocity_lp(q, n, valid, np.asarray(v_pref, dtype=float), vmax)
-    stuck = np.flatnonzero(~feasible)
-    if len(stuck):
-        new[stuck] = least_violation_velocities(q[stuck], n[stuck], valid[stuck], vmax[stuck])
-    return new, ~feasible
+    for name, value in (("positions", pos), ("velocities", vel), ("v_pref", pref)):
+        if value.shape != (N, 2):  # the compiled kernel reads them unchecked
+            raise ConfigError(f"{name}: expected an array ({N}, 2), received shape {value.shape}")
+    try:
+        rad = np.ascontiguousarray(np.broadcast_to(np.asarray(radius, dtype=np.float64), (N,)))
+        vmax = np.ascontiguousarray(np.broadcast_to(np.asarray(v_max, dtype=np.float64), (N,)))
+    except ValueError:
+        raise ConfigError(f"radius, v_max: expected numbers or arrays ({N},), received shapes {np.shape(radius)}, {np.shape(v_max)}") from None
+    k = max(min(params.max_neighbors, N - 1), 0)
+    idx, count = nearest_neighbours(pos, k, params.neighbor_dist)
+    new, infeasible = np.empty((N, 2)), np.empty(N, np.bool_)
+    args = (pos, vel, pref, rad, vmax, idx, count, float(params.time_horizon), float(dt), new, infeasible)
+    if use_parallel(N):
+        _orca_parallel(*args)
+    else:
+        _orca_range(0, N, *args)
+    return new, infeasible
+
+
+_CHUNK = 256  # agents per parallel task (one set of scratch lines each)
+
+
+@numba.njit(cache=True, parallel=True)
+def _orca_parallel(pos, vel, pref, rad, vmax, idx, count, tau, dt, new, infeasible):
+    n = len(pos)
+    for c in numba.prange((n + _CHUNK - 1) // _CHUNK):
+        _orca_range(c * _CHUNK, min(n, (c + 1) * _CHUNK), pos, vel, pref, rad, vmax, idx, count, tau, dt, new, infeasible)
+
+
+@numba.njit(cache=True)
+def _orca_range(lo, hi, pos, vel, pref, rad, vmax, idx, count, tau, dt, new, infeasible):
+    """Agents ``lo … hi − 1``: half-planes (step 2), 2-D program (3), fallback (4)."""
+    k = idx.shape[1]
+    lines = np.empty((max(k, 1), 4))  # q_x, q_y, n_x, n_y
+    scratch = np.empty((max(k, 1), 4))
+    for i in range(lo, hi):
+        m = count[i]
+        for t in range(m):
+            j = idx[i, t]
+            halfplane(pos[j, 0] - pos[i, 0], pos[j, 1] - pos[i, 1], vel[i, 0] - vel[j, 0], vel[i, 1] - vel[j, 1],
+                      vel[i, 0], vel[i, 1], rad[i] + rad[j], tau, dt, lines, t)
+        failed, v0, v1 = program_2d(lines, m, vmax[i], pref[i, 0], pref[i, 1], False)
+        if failed < m:
+            v0, v1 = program_3d(lines, m, failed, vmax[i], v0, v1, scratch)
+        new[i, 0], new[i, 1], infeasible[i] = v0, v1, failed < m
+
+
+@numba.njit(cache=True)
+def halfplane(p0, p1, w0_rel, w1_rel, own0, own1, r, tau, dt, lines, t):
+    """ORCA half-plane of one pair into ``lines[t] = (q, n)`` (Sec. 4, Eq. (5); the same
+    cases as :func:`orca_halfplanes`): ``p`` relative position, ``v`` relative velocity."""
+    dist2 = p0 * p0 + p1 * p1
+    overlap = dist2 <= r * r
+    inv_t = 1.0 / dt if overlap else 1.0 / tau
+    w0, w1 = w0_rel - p0 * inv_t, w1_rel - p1 * inv_t
+    w_len = np.sqrt(w0 * w0 + w1 * w1)
+    unit0, unit1 = w0 / max(w_len, _EPS), w1 / max(w_len, _EPS)
+    w_dot_p = w0 * p0 + w1 * p1
+    if overlap or (w_dot_p < 0 and w_dot_p * w_dot_p > r * r * w_len * w_len):  # cut-off disc
+        u_scale = r * inv_t - w_len
+        u0, u1, n0, n1 = u_scale * unit0, u_scale * unit1, unit0, unit1
+    else:  # a leg of the cone: tangent from the origin to D(p, r)
+        leg = np.sqrt(max(dist2 - r * r, 0.0))
+        left = (p0 * w1 - p1 * w0) > 0
+        rot = r if left else -r
+        scale = max(dist2, _EPS)
+        d0, d1 = (p0 * leg - p1 * rot) / scale, (p0 * rot + p1 * leg) / scale
+        n0, n1 = (-d1, d0) if left else (d1, -d0)
+        along = w0_rel * d0 + w1_rel * d1
+        u0, u1 = along * d0 - w0_rel, along * d1 - w1_rel
+    lines[t, 0], lines[t, 1], lines[t, 2], lines[t, 3] = own0 + 0.5 * u0, own1 + 0.5 * u1, n0, n1
+
+
+@numba.njit(cache=True)
+def program_1d(lines, k, radius, c0, c1, direction):
+    """Sec. 5.1, on line k: the best point ``q_k + s d_k`` (``d_k = n_k`` turned by −90°)
+    in the disc and the half-planes ``0 … k − 1``: nearest to ``c`` or, with
+    ``direction``, furthest along ``c``. Returns ``(ok, v_x, v_y)``."""
+    q0, q1, n0, n1 = lines[k, 0], lines[k, 1], lines[k, 2], lines[k, 3]
+    d0, d1 = n1, -n0
+    qd = q0 * d0 + q1 * d1
+    disc = qd * qd + radius * radius - (q0 * q0 + q1 * q1)
+    if disc < 0.0:
+        return False, 0.0, 0.0
+    root = np.sqrt(disc)
+    lo, hi = -qd - root, -qd + root
+    for j in range(k):
+        rate = lines[j, 2] * d0 + lines[j, 3] * d1  # n_j·d_k
+        need = lines[j, 2] * (lines[j, 0] - q0) + lines[j, 3] * (lines[j, 1] - q1)  # n_j·(q_j − q_k)
+        if abs(rate) <= _EPS:
+            if need > 0.0:  # line k lies outside half-plane j
+                return False, 0.0, 0.0
+            continue
+        if rate > 0.0:
+            lo = max(lo, need / rate)
+        else:
+            hi = min(hi, need / rate)
+        if lo > hi:
+            return False, 0.0, 0.0
+    if direction:
+        s = hi if c0 * d0 + c1 * d1 > 0.0 else lo
+    else:
+        s = min(max((c0 - q0) * d0 + (c1 - q1) * d1, lo), hi)
+    return True, q0 + s * d0, q1 + s * d1
+
+
+@numba.njit(cache=True)
+def program_2d(lines, m, radius, c0, c1, direction):
+    """Sec. 5.1: nearest point to ``c`` (or, with ``direction``, furthest along the unit
+    ``c``) in the disc ``D(0, radius)`` and the half-planes ``0 … m − 1``, adding the
+    half-planes one at a time. Returns ``(failed, v_x, v_y)``: ``failed = m`` when
+    feasible, else the first half-plane that emptied the program, with the optimum of
+    the ones before it."""
+    if direction:
+        v0, v1 = c0 * radius, c1 * radius
+    else:
+        speed2 = c0 * c0 + c1 * c1
+        scale = radius / np.sqrt(speed2) if speed2 > radius * radius else 1.0
+        v0, v1 = c0 * scale, c1 * scale
+    for k in range(m):
+        if lines[k, 2] * (v0 - lines[k, 0]) + lines[k, 3] * (v1 - lines[k, 1]) < 0.0:
+            ok, x0, x1 = program_1d(lines, k, radius, c0, c1, direction)
+            if not ok:
+                return k, v0, v1
+            v0, v1 = x0, x1
+    return m, v0, v1
+
+
+@numba.njit(cache=True)
+def program_3d(lines, m, begin, radius, v0, v1, scratch):
+    """Sec. 5.2: minimise the largest violation ``max_k n_k·(q_k − v)`` over the disc,
+    starting from the optimum of half-planes ``0 … begin − 1`` (violation ≤ 0)."""
+    worst = 0.0
+    for k in range(begin, m):
+        qk0, qk1, nk0, nk1 = lines[k, 0], lines[k, 1], lines[k, 2], lines[k, 3]
+        if nk0 * (qk0 - v0) + nk1 * (qk1 - v1) <= worst:
+            continue
+        rows = 0
+        for j in range(k):  # {v : n_j·(q_j − v) ≤ n_k·(q_k − v)}
+            w0, w1 = lines[j, 2] - nk0, lines[j, 3] - nk1
+            w_len = np.sqrt(w0 * w0 + w1 * w1)
+            if w_len <= _EPS:  # same direction: line k dominates j everywhere
+                continue
+            offset = (lines[j, 2] * lines[j, 0] + lines[j, 3] * lines[j, 1] - nk0 * qk0 - nk1 * qk1) / w_len
+            u0, u1 = w0 / w_len, w1 / w_len
+            scratch[rows, 0], scratch[rows, 1], scratch[rows, 2], scratch[rows, 3] = u0 * offset, u1 * offset, u0, u1
+            rows += 1
+        failed, x0, x1 = program_2d(scratch, rows, radius, nk0, nk1, True)
+        if failed == rows:  # always feasible in exact arithmetic; keep the last point otherwise
+            v0, v1 = x0, x1
+        worst = nk0 * (qk0 - v0) + nk1 * (qk1 - v1)
+    return v0, v1
 
 
 def preferred_velocities(positions: np.ndarray, goals: np.ndarray, v_max: float | np.ndarray, dt: float) -> np.ndarray:

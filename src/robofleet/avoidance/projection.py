@@ -16,8 +16,8 @@ the candidates (``x* = g − Σ λ_m a_m``, ``λ ≥ 0``):
 Each robot's problem has a handful of constraints and data-dependent branches, so the
 kernel is compiled with numba (a flat-list numpy version of the same enumeration spent
 ~15 passes over arrays of all candidates and was the hot spot of the 10,000-robot step;
-see ``benchmarks/avoidance_scale.py``). Cost: O(V · M²) per robot for V violated of M
-constraints, typically V, M ≤ 6.
+see ``benchmarks/avoidance_scale.py``), robots in parallel (:mod:`.kernels`). Cost:
+O(V · M²) per robot for V violated of M constraints, typically V, M ≤ 6.
 """
 
 from __future__ import annotations
@@ -27,7 +27,9 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
+from ..core.errors import ConfigError, short_repr
 from .cell import Cells
+from .kernels import use_parallel
 
 FEAS_TOL = 1e-9
 
@@ -48,12 +50,17 @@ class Projection:
 
 def project_onto_cells(goals: np.ndarray, cells: Cells) -> Projection:
     """Project ``goals (N, 2)`` onto the cells (exact; see module docstring)."""
+    check_projection_inputs(goals, cells)
     n = len(goals)
     point = np.empty((n, 2))
     empty = np.zeros(n, np.bool_)
     active = np.full((n, 2), -1, np.intp)
-    _project_all(np.ascontiguousarray(goals, dtype=np.float64), np.ascontiguousarray(cells.A), np.ascontiguousarray(cells.b),
-                 np.ascontiguousarray(cells.valid), point, empty, active)
+    args = (np.ascontiguousarray(goals, dtype=np.float64), np.ascontiguousarray(cells.A), np.ascontiguousarray(cells.b),
+            np.ascontiguousarray(cells.valid), point, empty, active)
+    if use_parallel(n):
+        _project_parallel(*args)
+    else:
+        _project_range(0, n, *args)
     return Projection(point, empty, active)
 
 
@@ -65,55 +72,81 @@ def _feasible(x0, x1, A, b, valid, i):
     return True
 
 
+_CHUNK = 256  # robots per parallel task (one scratch array each)
+
+
+@numba.njit(cache=True, parallel=True)
+def _project_parallel(goals, A, b, valid, point, empty, active):
+    """Every robot's projection; robots are independent, in parallel chunks."""
+    n = A.shape[0]
+    for c in numba.prange((n + _CHUNK - 1) // _CHUNK):
+        _project_range(c * _CHUNK, min(n, (c + 1) * _CHUNK), goals, A, b, valid, point, empty, active)
+
+
 @numba.njit(cache=True)
-def _project_all(goals, A, b, valid, point, empty, active):
-    n, m = A.shape[0], A.shape[1]
-    slack = np.empty(m)
-    for i in range(n):
-        g0, g1 = goals[i, 0], goals[i, 1]
-        any_violated = False
-        for k in range(m):
-            slack[k] = A[i, k, 0] * g0 + A[i, k, 1] * g1 - b[i, k]
-            if valid[i, k] and slack[k] > FEAS_TOL:
-                any_violated = True
-        point[i, 0], point[i, 1] = g0, g1
-        if not any_violated:
+def _project_range(lo, hi, goals, A, b, valid, point, empty, active):
+    slack = np.empty(A.shape[1])
+    for i in range(lo, hi):
+        _project_one(i, goals, A, b, valid, point, empty, active, slack)
+
+
+@numba.njit(cache=True, inline="always")
+def _project_one(i, goals, A, b, valid, point, empty, active, slack):
+    """Steps 1–4 of the module docstring for robot ``i``."""
+    m = A.shape[1]
+    g0, g1 = goals[i, 0], goals[i, 1]
+    any_violated = False
+    for k in range(m):
+        slack[k] = A[i, k, 0] * g0 + A[i, k, 1] * g1 - b[i, k]
+        if valid[i, k] and slack[k] > FEAS_TOL:
+            any_violated = True
+    point[i, 0], point[i, 1] = g0, g1
+    if not any_violated:
+        return
+    best = np.inf
+    # step 2: edge candidates of violated constraints (any feasible one is optimal)
+    for k in range(m):
+        if valid[i, k] and slack[k] > FEAS_TOL:
+            x0, x1 = g0 - slack[k] * A[i, k, 0], g1 - slack[k] * A[i, k, 1]
+            if slack[k] < best and _feasible(x0, x1, A, b, valid, i):
+                best = slack[k]
+                point[i, 0], point[i, 1] = x0, x1
+                active[i, 0], active[i, 1] = k, -1
+    if best < np.inf:
+        return
+    # step 3: vertices pairing a violated constraint with any other, with λ ≥ 0
+    for k in range(m):
+        if not (valid[i, k] and slack[k] > FEAS_TOL):
             continue
-        best = np.inf
-        # step 2: edge candidates of violated constraints (any feasible one is optimal)
-        for k in range(m):
-            if valid[i, k] and slack[k] > FEAS_TOL:
-                x0, x1 = g0 - slack[k] * A[i, k, 0], g1 - slack[k] * A[i, k, 1]
-                if slack[k] < best and _feasible(x0, x1, A, b, valid, i):
-                    best = slack[k]
-                    point[i, 0], point[i, 1] = x0, x1
-                    active[i, 0], active[i, 1] = k, -1
-        if best < np.inf:
-            continue
-        # step 3: vertices pairing a violated constraint with any other, with λ ≥ 0
-        for k in range(m):
-            if not (valid[i, k] and slack[k] > FEAS_TOL):
+        ak0, ak1, bk = A[i, k, 0], A[i, k, 1], b[i, k]
+        for j in range(m):
+            if j == k or not valid[i, j]:
                 continue
-            ak0, ak1, bk = A[i, k, 0], A[i, k, 1], b[i, k]
-            for j in range(m):
-                if j == k or not valid[i, j]:
-                    continue
-                aj0, aj1, bj = A[i, j, 0], A[i, j, 1], b[i, j]
-                det = ak0 * aj1 - ak1 * aj0
-                if abs(det) <= 1e-12:
-                    continue
-                v0 = (bk * aj1 - bj * ak1) / det
-                v1 = (ak0 * bj - aj0 * bk) / det
-                r0, r1 = g0 - v0, g1 - v1
-                lam_k = (r0 * aj1 - r1 * aj0) / det
-                lam_j = (ak0 * r1 - ak1 * r0) / det
-                if lam_k < -FEAS_TOL or lam_j < -FEAS_TOL:
-                    continue
-                dist = np.sqrt(r0 * r0 + r1 * r1)
-                if dist < best and _feasible(v0, v1, A, b, valid, i):
-                    best = dist
-                    point[i, 0], point[i, 1] = v0, v1
-                    active[i, 0], active[i, 1] = k, j
-        if best == np.inf:  # step 4: empty cell
-            point[i, 0], point[i, 1] = np.nan, np.nan
-            empty[i] = True
+            aj0, aj1, bj = A[i, j, 0], A[i, j, 1], b[i, j]
+            det = ak0 * aj1 - ak1 * aj0
+            if abs(det) <= 1e-12:
+                continue
+            v0 = (bk * aj1 - bj * ak1) / det
+            v1 = (ak0 * bj - aj0 * bk) / det
+            r0, r1 = g0 - v0, g1 - v1
+            lam_k = (r0 * aj1 - r1 * aj0) / det
+            lam_j = (ak0 * r1 - ak1 * r0) / det
+            if lam_k < -FEAS_TOL or lam_j < -FEAS_TOL:
+                continue
+            dist = np.sqrt(r0 * r0 + r1 * r1)
+            if dist < best and _feasible(v0, v1, A, b, valid, i):
+                best = dist
+                point[i, 0], point[i, 1] = v0, v1
+                active[i, 0], active[i, 1] = k, j
+    if best == np.inf:  # step 4: empty cell
+        point[i, 0], point[i, 1] = np.nan, np.nan
+        empty[i] = True
+
+
+# -- input validation of project_onto_cells (types and shapes only: it runs every step) -------
+def check_projection_inputs(goals: object, cells: object) -> None:
+    """One-line :class:`~robofleet.core.errors.ConfigError` s for arguments of the wrong kind or shape."""
+    if not isinstance(cells, Cells) or cells.A.ndim != 3 or cells.A.shape[-1] != 2:
+        raise ConfigError(f"cells: expected planar Cells (build_cells of 2-D estimates), received {short_repr(cells)}")
+    if np.shape(goals) != (cells.A.shape[0], 2):
+        raise ConfigError(f"goals: expected an array ({cells.A.shape[0]}, 2), one goal per cell, received shape {np.shape(goals)}")

@@ -1,7 +1,7 @@
 """Random 2-D B-UAVC scenarios for liveness benchmarks (issue 10, item 2).
 
 Each scenario is a plain scenario MAPPING (what :func:`robofleet.load_scenario` takes)
-drawn from a seed: 8–16 single-integrator robots in the authors' random antipodal swap
+drawn from a seed (step budget by the shipped rule, :func:`.spec.straight_line_budget`): 8–16 single-integrator robots in the authors' random antipodal swap
 (notes/buavc.md "Setups": robot i at a random angle in its own sector, radius
 U(0.3, 4.7) m, goal = −start; the swap itself is drawn by the run's own seed) among
 2–6 random convex obstacles (random convex polygons of 3–6 vertices, 0.3–0.7 m across,
@@ -13,12 +13,12 @@ from __future__ import annotations
 
 import numpy as np
 
+from .spec import TRAVEL_TIME_MULTIPLE
+
 ROBOTS = (8, 16)
 OBSTACLES = (2, 6)
 BOUND = 5.0
-STEP_BUDGET_MULTIPLE = 2.5
-"""Step budget = this multiple of the longest straight-line travel time (2 × 4.7 m at
-v_max), the rule used for the shipped scenarios too."""
+R_MAX = 4.7
 
 
 def random_convex_polygon(rng: np.random.Generator, center: np.ndarray, radius: float) -> list[list[float]]:
@@ -51,10 +51,10 @@ def random_scenario(seed: int) -> dict:
     n = int(rng.integers(ROBOTS[0], ROBOTS[1] + 1))
     obstacles = random_obstacles(rng, int(rng.integers(OBSTACLES[0], OBSTACLES[1] + 1)))
     v_max = 0.4
-    steps = int(np.ceil(STEP_BUDGET_MULTIPLE * 2 * 4.7 / v_max / 0.1))
+    steps = int(np.ceil(TRAVEL_TIME_MULTIPLE["single_integrator"] * 2 * R_MAX / v_max / 0.1 - 1e-9))  # the shipped rule
     return {
         "family": "avoidance", "name": f"random_{seed}", "method": "buavc", "delta": 0.1, "dt": 0.1,
         "max_steps": steps, "goal_tolerance": 0.1, "local_box": 2.0,
         "workspace": {"bounds": [-BOUND, -BOUND, BOUND, BOUND], "obstacle_sigma": 0.1, "obstacles": obstacles},
-        "robots": {"n": n, "radius": 0.2, "v_max": v_max, "sigma": 0.1, "layout": {"kind": "antipodal", "r_min": 0.3, "r_max": 4.7}},
+        "robots": {"n": n, "radius": 0.2, "v_max": v_max, "sigma": 0.1, "layout": {"kind": "antipodal", "r_min": 0.3, "r_max": R_MAX}},
     }

@@ -23,6 +23,7 @@ bisector.
 
 from __future__ import annotations
 
+import numba
 import numpy as np
 
 from ..core.errors import ConfigError, short_repr
@@ -143,6 +144,60 @@ def shared_covariance_separator(mi: np.ndarray, mj: np.ndarray, cov: np.ndarray)
     norm = np.linalg.norm(a, axis=-1)
     b = np.einsum("kd,kd->k", a, 0.5 * (mi + mj))
     return a / norm[:, None], b / norm
+
+
+SHARED_ZERO, SHARED_DIAGONAL, SHARED_DIVIDE, SHARED_GENERAL = 0, 1, 2, 3
+"""How :func:`shared_separator_row` applies Σ⁻¹: Σ = 0 (BVC); diagonal, by the reciprocal
+or by division; a full 2×2."""
+
+
+def separator_mode(cov: np.ndarray, pairs: int = 2) -> tuple[int, np.ndarray]:
+    """The shared 2×2 ``cov`` prepared for :func:`shared_separator_row`: ``(mode, solve)``
+    with ``solve`` the diagonal or its reciprocal, or the regularised matrix flattened
+    (regularised as :func:`separator_flat` does).
+
+    A diagonal Σ is applied as :func:`shared_covariance_separator`'s LU solve rounds it:
+    by the reciprocal of the diagonal for two or more right-hand sides, by division for
+    ``pairs == 1`` (LAPACK's one-column path), so both forms give the same bits."""
+    if not np.any(cov):
+        return SHARED_ZERO, np.zeros(4)
+    reg = _regularise(cov[None], cov[None])[0][0]
+    if reg[0, 1] == 0.0 and reg[1, 0] == 0.0:
+        if pairs == 1:
+            return SHARED_DIVIDE, np.array([reg[0, 0], reg[1, 1], 0.0, 0.0])
+        return SHARED_DIAGONAL, np.array([1.0 / reg[0, 0], 1.0 / reg[1, 1], 0.0, 0.0])
+    return SHARED_GENERAL, np.ascontiguousarray(reg, dtype=np.float64).reshape(4)
+
+
+@numba.njit(cache=True, inline="always")
+def shared_separator_row(xi, yi, xj, yj, mode, solve):
+    """Robot i's unit normal and offset ``(a_x, a_y, b)`` for neighbour j under a shared Σ
+    (:func:`shared_covariance_separator` for one pair, compiled).
+
+    ``a = Σ⁻¹(p̂_j − p̂_i)`` — the reciprocal diagonal for a diagonal Σ, which is how the
+    LU solve :func:`numpy.linalg.solve` of the vectorized form rounds too, else 2×2 LU with
+    partial pivoting — then ``b = aᵀ(p̂_i + p̂_j)/2``, both divided by ``‖a‖``. Every
+    operation is odd in ``p̂_j − p̂_i`` or symmetric in ``(i, j)``, so robot j's row for
+    the same pair is exactly ``(−a, −b)`` (appendix B).
+    """
+    d0, d1 = xj - xi, yj - yi
+    if mode == SHARED_ZERO:
+        a0, a1 = d0, d1
+    elif mode == SHARED_DIAGONAL:
+        a0, a1 = d0 * solve[0], d1 * solve[1]
+    elif mode == SHARED_DIVIDE:
+        a0, a1 = d0 / solve[0], d1 / solve[1]
+    elif abs(solve[0]) >= abs(solve[2]):
+        l = solve[2] / solve[0]
+        a1 = (d1 - l * d0) / (solve[3] - l * solve[1])
+        a0 = (d0 - solve[1] * a1) / solve[0]
+    else:
+        l = solve[0] / solve[2]
+        a1 = (d0 - l * d1) / (solve[1] - l * solve[3])
+        a0 = (d1 - solve[3] * a1) / solve[2]
+    norm = np.sqrt(a0 * a0 + a1 * a1)
+    off = a0 * (0.5 * (xi + xj)) + a1 * (0.5 * (yi + yj))
+    return a0 / norm, a1 / norm, off / norm
 
 
 def solve_t(diff: np.ndarray, ci: np.ndarray, cj: np.ndarray) -> np.ndarray:

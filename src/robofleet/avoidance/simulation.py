@@ -48,11 +48,12 @@ from .braking import braking_control, braking_rule
 from .buffer import buffer, confidence_quantile, shadow_epsilon
 from .cell import CellGeometry, Cells, Kind, build_cells
 from .cell3d import box_shadow_planes, project_onto_polytope, workspace_box_planes
-from .controller import ControllerState, DeadlockParams, single_integrator_control
-from .liveness import LivenessParams
+from .controller import ControllerState, DeadlockParams, cell_rows, single_integrator_control
+from .liveness import LivenessParams, ParkingState, steering_goals
 from .diff_drive import three_projection_control
 from .metrics import ControllerCounts, run_results
 from .mpc import BuavcMPC, GoalRotation, SingleIntegratorParams
+from .navigation import Navigation, Roadmap
 from .obstacles import ObstacleSet, wall_planes
 from .orca import orca_velocities, preferred_velocities
 from .projection import project_onto_cells
@@ -249,11 +250,6 @@ def cell_model(spec: Spec, setup: MethodSetup) -> CellModel:
     return CellModel(covs, radius, setup.quantile, geometry, spec.local_box, boxes)
 
 
-def team_rows(cells: Cells, index: slice) -> Cells:
-    """One team's cells (views, no copy)."""
-    return Cells(cells.A[index], cells.b[index], cells.valid[index], cells.kind[index], cells.source[index])
-
-
 def ground_section(cells: Cells, z: float) -> Cells:
     """The section of 3-D cells with the plane ``z`` (ground robots), as 2-D cells:
     ``{(x, y) : a_xy·(x, y) ≤ b − a_z z}`` with rows normalised; rows with ``a_xy ≈ 0``
@@ -313,6 +309,8 @@ class Group:
     rotation: GoalRotation | None = None
     mpc: BuavcMPC | None = None
     grown: np.ndarray | None = field(default=None, repr=False)
+    navigation: Navigation | None = field(default=None, repr=False)
+    parking: ParkingState | None = field(default=None, repr=False)
 
     @property
     def plane_dim(self) -> int:
@@ -373,7 +371,8 @@ def make_group(spec: Spec, team: TeamSpec, index: slice, starts: np.ndarray, goa
     if spec.method == "orca":
         pass  # ORCA keeps only the arrival flags
     elif model.controller == "mpc":
-        group.mpc = BuavcMPC(kind, params, dim=group.plane_dim, dt=spec.dt, config=model.mpc, n_robots=n)
+        group.mpc = BuavcMPC(kind, params, dim=group.plane_dim, dt=spec.dt, config=model.mpc, n_robots=n,
+                             speed_limit=team.v_max if kind == "quadrotor" else None, position_sigma=team.largest_sigma())
     elif kind == "single_integrator":
         group.si_state = ControllerState.initial(n, d.window)
     else:
@@ -418,8 +417,12 @@ class World:
         self.n = len(self.starts)
         teams = spec.team_specs()
         self.cell_model = None if spec.method == "orca" else cell_model(spec, self.setup)
+        self.liveness = LivenessParams(**spec.liveness.model_dump())
         self.groups = [make_group(spec, team, sl, self.starts[sl], self.goals[sl], self.detour_vertices(team))
                        for team, sl in zip(teams, slices)]
+        for team, sl, g in zip(teams, slices, self.groups):
+            g.navigation = self.navigation(team, self.goals[sl])
+            g.parking = ParkingState.initial(team.n)
         self.noise_factor = self.position_noise_factor(teams, slices)
         self.obstacle_factor, self.n_obstacles = self.obstacle_noise()
         self.radius = np.full(self.n, spec.robots.radius)
@@ -427,23 +430,39 @@ class World:
         self.control_width = max(CONTROL_WIDTH[t.model.kind] for t in teams)
         self.velocity = np.zeros((self.n, self.dim))
         self.deadlock = DeadlockParams(**spec.deadlock.model_dump())
-        self.liveness = LivenessParams(**spec.liveness.model_dump())
         self.fallback_steps = 0
         self.solve_steps = 0
         self.has_mpc = any(t.model.controller == "mpc" for t in teams)
         self.mpc_status = np.full(self.n, MPC_NO_MPC, np.int8)
 
     # -- set-up ---------------------------------------------------------------------------
+    def obstacle_clearance(self, team: TeamSpec) -> float | None:
+        """The whole clearance a 2-D team's cells keep from the nominal obstacles (r_s,
+        the chance buffer, the ε-shadow); ``None`` without cells or in 3-D."""
+        if self.cell_model is None or self.dim == 3:
+            return None
+        sigma = team.largest_sigma() if self.setup.chance_constrained else 0.0
+        return obstacle_clearance(self.setup.cell_radius(self.spec.robots.radius, team.largest_sigma()), sigma, self.setup.quantile,
+                                  self.cell_model.geometry.obstacles, self.spec.workspace.obstacle_covariance())
+
     def detour_vertices(self, team: TeamSpec) -> np.ndarray | None:
         """Appendix C detour targets of a 2-D single-integrator team: the obstacles grown
         by 1.05 × the whole clearance its cells keep (r_s, the chance buffer, the ε-shadow)."""
-        if self.cell_model is None or self.dim == 3 or team.model.kind != "single_integrator" or team.model.controller != "one_step":
+        clearance = self.obstacle_clearance(team)
+        if clearance is None or team.model.kind != "single_integrator" or team.model.controller != "one_step":
             return None
-        sigma = team.largest_sigma() if self.setup.chance_constrained else 0.0
-        ws = self.spec.workspace
-        margin = obstacle_clearance(self.setup.cell_radius(self.spec.robots.radius, team.largest_sigma()), sigma, self.setup.quantile,
-                                    self.cell_model.geometry.obstacles, ws.obstacle_covariance())
-        return grown_obstacle_vertices(ws.obstacle_polygons(), 1.05 * margin)
+        return grown_obstacle_vertices(self.spec.workspace.obstacle_polygons(), 1.05 * clearance)
+
+    def navigation(self, team: TeamSpec, goals: np.ndarray) -> Navigation | None:
+        """The roadmap sub-goals of a 2-D team (:mod:`.navigation`) when liveness asks for
+        them and there are obstacles: nodes at 1.15 × the team's obstacle clearance."""
+        clearance = self.obstacle_clearance(team)
+        polygons = self.spec.workspace.obstacle_polygons()
+        if clearance is None or not polygons or not (self.liveness.enabled and self.liveness.roadmap):
+            return None
+        corners = self.spec.workspace.bounds_vertices()
+        bounds = (*corners.min(axis=0), *corners.max(axis=0))
+        return Navigation(Roadmap(polygons, 1.15 * clearance, bounds, clearance), goals[:, :2])
 
     def position_noise_factor(self, teams: tuple[TeamSpec, ...], slices: list[slice]) -> np.ndarray:
         """``L`` with ``L Lᵀ = Σ``: one ``(d, d)`` factor for one team, else ``(N, d, d)``."""
@@ -541,7 +560,7 @@ class World:
 
     def team_cells(self, cells: Cells, g: Group) -> Cells:
         """A team's cells (their section with the ground plane for ground robots in 3-D)."""
-        rows = team_rows(cells, g.index)
+        rows = cell_rows(cells, g.index)
         return ground_section(rows, g.z) if (self.dim == 3 and not g.flying) else rows
 
     def team_control(self, g: Group, estimates: np.ndarray, cells: Cells) -> tuple[np.ndarray, np.ndarray | None]:
@@ -553,7 +572,7 @@ class World:
         if g.si_state is not None:
             u, info = single_integrator_control(p_est, goal, cells, g.si_state, v_max=g.v_max, dt=dt, goal_tolerance=spec.goal_tolerance,
                                                 deadlock=self.deadlock, grown_obstacles=g.grown,
-                                                liveness=self.liveness, local_box=spec.local_box)
+                                                liveness=self.liveness, local_box=spec.local_box, navigation=g.navigation)
             return u, info["empty"]
         g.arrived |= np.linalg.norm(goal - p_est, axis=1) <= spec.goal_tolerance
         state_est = g.state.copy()
@@ -564,14 +583,22 @@ class World:
             self.solve_steps += int((~g.arrived).sum())
             self.mpc_status[g.index] = np.where(g.arrived, MPC_ARRIVED, np.where(info["fallback"], MPC_FALLBACK, MPC_SOLVED))
             return u, None
+        moving = np.zeros(len(goal), bool)
+        if self.liveness.enabled:
+            # a blocked double integrator or unicycle comes to rest, so holding still does
+            # not tell a parked neighbour from a blocked one; unicycles do not turn right
+            rules = replace(self.liveness, still_radius=0.0, right_hand_angle=self.liveness.right_hand_angle if g.kind != "unicycle" else 0.0)
+            goal, moving = steering_goals(p_est, goal, g.arrived, cells, rules, g.parking, spec.local_box, g.navigation,
+                                          spec.goal_tolerance)
         working = g.rotation.working_goals(p_est, goal, g.arrived)
+        holding = g.arrived & ~moving
         if g.kind == "double_integrator":
             proj = project_onto_cells(working, cells)
             target = np.where(proj.empty[:, None], p_est, proj.point)
             u, _ = braking_rule(p_est, g.state[:, 2:], target, cells.A, cells.b, cells.valid, g.params, dt)
-            return np.where(g.arrived[:, None], braking_control(g.state[:, 2:], g.params.a_max, dt), u), proj.empty
+            return np.where(holding[:, None], braking_control(g.state[:, 2:], g.params.a_max, dt), u), proj.empty
         u = three_projection_control(state_est, working, cells.A, cells.b, cells.valid, g.params, dt, project=project_2d)
-        return np.where(g.arrived[:, None], 0.0, u), None
+        return np.where(holding[:, None], 0.0, u), None
 
     def orca_control(self, estimates: np.ndarray) -> np.ndarray:
         """ORCA velocities (van den Berg et al. 2011) for all robots, preferring the goal at
@@ -592,10 +619,20 @@ class World:
         if before is not None:
             self.velocity = (self.positions() - before) / self.dt
 
+    def settled(self, estimates: np.ndarray) -> bool:
+        """No arrived robot is away from its goal on a yield (:mod:`.liveness`)."""
+        tol = self.spec.goal_tolerance
+        for g in self.groups:
+            parking = g.si_state.parking if g.si_state is not None else g.parking
+            if parking is not None and not parking.settled(estimates[g.index, :2], self.goals[g.index, :2], tol):
+                return False
+        return True
+
     def counts(self) -> ControllerCounts:
         """The controllers' counters (deadlocks, MPC fallbacks; empty cells are counted from events)."""
-        return ControllerCounts(deadlock_detections=int(self.deadlock_counts().sum()), mpc_fallback_steps=self.fallback_steps,
-                               mpc_solve_steps=self.solve_steps)
+        livelocks = sum(int(g.si_state.livelocks.sum()) for g in self.groups if g.si_state is not None)
+        return ControllerCounts(deadlock_detections=int(self.deadlock_counts().sum()), livelock_detections=livelocks,
+                                mpc_fallback_steps=self.fallback_steps, mpc_solve_steps=self.solve_steps)
 
     def metadata(self) -> dict:
         """What is needed to interpret the arrays (viz, metrics, replays), as plain JSON values."""
@@ -700,7 +737,7 @@ def simulate(spec: Spec, seed: int | None = None, progress: bool = False) -> Tra
         rec.events_for(k, "empty_cell", flags.empty)
         if cell_log is not None:
             cell_log.append((cells.A, cells.b))
-        return rec.all_arrived
+        return rec.all_arrived and world.settled(estimates)
 
     rec.run(step)
     loop_seconds = rec.wall_seconds
@@ -713,5 +750,7 @@ def simulate(spec: Spec, seed: int | None = None, progress: bool = False) -> Tra
                           workspace=workspace, boxes=spec.space3d.box_arrays() if spec.space3d is not None else None,
                           step_seconds=arrays["step_seconds"], arrivals=arrays["arrival_steps"], counts=counts,
                           premise=None if world.cell_model is None else (arrays["estimate_in_cell"], arrays["empty_cell"]))
+    last = arrays["estimates"][-1] if len(arrays["estimates"]) else world.positions()
+    results["success"] = bool(results["success"] and world.settled(last))  # nobody left stepped aside
     metadata = {**world.metadata(), "loop_seconds": loop_seconds}
     return rec.trace("avoidance", scenario=spec.scenario_name, seed=seed, metadata=metadata, results=results, workspace=workspace)

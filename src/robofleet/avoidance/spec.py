@@ -42,7 +42,7 @@ Example (3-D quadrotors, teams)::
 
 from __future__ import annotations
 
-import importlib.util
+import math
 
 from collections.abc import Sequence
 from typing import Any, Literal, Optional
@@ -50,7 +50,8 @@ from typing import Any, Literal, Optional
 import numpy as np
 from pydantic import Field, field_validator, model_validator
 
-from ..core import geometry
+from ..core import extras, geometry
+from ..core.budget import RunSize
 from ..core.config import SpecModel
 from ..core.errors import ScenarioError
 from ..core.spec_blocks import WorkspaceSpec, is_convex
@@ -65,6 +66,10 @@ Point = tuple[float, float]
 Point3 = tuple[float, float, float]
 ModelKind = Literal["single_integrator", "double_integrator", "unicycle", "quadrotor"]
 Method = Literal["buavc", "bvc", "bvc_inflated", "orca"]
+MPC_STAGE_ROWS = 12
+"""Rows of one MPC stage besides the cell's (dynamics, input and state bounds), for the memory budget."""
+MPC_ROW_BYTES = 4096
+"""Memory of one MPC constraint row of one stage (symbolic expression, Jacobian, solver), for the memory budget."""
 LEGACY_TEAM = "robots"
 """Name of the team the short ``robots:`` + ``model:`` blocks describe."""
 
@@ -231,8 +236,8 @@ class ModelSpec(SpecModel):
             raise ScenarioError("omega_max", "a number > 0 (required by model unicycle)", None)
         if self.kind == "quadrotor" and self.controller != "mpc":
             raise ScenarioError("controller", "'mpc' (the quadrotor has no one-step controller)", self.controller)
-        if self.controller == "mpc" and importlib.util.find_spec("casadi") is None:
-            raise ScenarioError("controller", "an installed casadi for controller 'mpc' (pip install 'robofleet[mpc]')", "mpc")
+        if self.controller == "mpc" and extras.missing("mpc"):
+            raise ScenarioError("controller", f"{extras.expectation('mpc')} for controller 'mpc'", "mpc")
         return self
 
     @property
@@ -253,6 +258,14 @@ class TeamLayoutSpec(SpecModel):
     height: float = 1.0
     starts: Optional[list[list[float]]] = None
     goals: Optional[list[list[float]]] = None
+
+    def longest_trip(self) -> float:
+        """The longest straight start–goal distance this layout can give [m]."""
+        if self.kind == "antipodal":
+            return 2.0 * self.r_max
+        if self.kind == "circle":
+            return 2.0 * self.radius
+        return float(max(np.linalg.norm(np.subtract(g[:2], s[:2])) for s, g in zip(self.starts, self.goals)))
 
     @model_validator(mode="after")
     def _fields(self):
@@ -353,14 +366,25 @@ class DeadlockSpec(SpecModel):
 
 
 class LivenessSpec(SpecModel):
-    """Parked robots that yield to lingering neighbours (single integrators; see
-    :mod:`robofleet.avoidance.liveness`). Off by default: the paper's robots hold."""
+    """The liveness rules of :mod:`robofleet.avoidance.liveness` for 2-D teams: roadmap
+    sub-goals around the obstacles, the right-hand turn (not for unicycles) and arrived
+    robots that yield. On by default; ``enabled: false`` gives the paper's controller
+    (appendix C alone, arrived robots hold)."""
 
-    enabled: bool = False
-    near: float = Field(1.0, gt=0)
+    enabled: bool = True
+    roadmap: bool = True
+    near: float = Field(1.5, gt=0)
     linger_steps: int = Field(30, ge=1)
     aside: float = Field(0.6, ge=0)
-    yield_steps: int = Field(25, ge=1)
+    max_aside: float = Field(1.5, ge=0)
+    aside_turn: float = Field(45.0, ge=-180, le=180)
+    clear_steps: int = Field(20, ge=1)
+    max_yield_steps: int = Field(150, ge=1)
+    still_radius: float = Field(0.4, gt=0)
+    still_steps: int = Field(50, ge=2)
+    return_steps: int = Field(200, ge=1)
+    right_hand_angle: float = Field(45.0, ge=0, lt=90)
+    face_near: float = Field(0.5, ge=0)
 
 
 # ---------------------------------------------------------------------------------------
@@ -428,6 +452,28 @@ class Spec(SpecModel):
         """Height of the centres of ground robots in a 3-D scenario: the floor plus r_s."""
         return float(self.space3d.lower[2] + self.robots.radius)
 
+    # -- memory budget (input validation, robofleet.core.budget) --------------------------
+    def run_size(self) -> RunSize:
+        """What a run records per robot and step: true position and estimate (d numbers
+        each), controls (at most 4), a heading and three flags; 2-D runs that record cells
+        (``record_cells``, by default up to 64 robots) add, twice (the log, then the
+        arrays), a row of d + 1 numbers per obstacle, wall and neighbour in the local box
+        (at most twice as many as robots of radius r_s packed 2 r_s apart fill it)."""
+        n = sum(team.n for team in self.teams) if self.teams else self.robots.n
+        d = self.dim
+        per_robot = 8 * (2 * d + 4 + 1) + 3
+        cells = self.record_cells if self.record_cells is not None else n <= 64
+        if d == 2 and self.method != "orca" and cells:
+            packed = 2 * math.ceil((self.local_box / self.robots.radius + 1) ** 2)
+            rows = min(n - 1, packed) + len(self.workspace.obstacles) + len(self.workspace.bounds_vertices())
+            per_robot += 2 * 8 * rows * (d + 1)
+        teams = self.team_specs() if not self.teams else self.teams
+        window = max([self.deadlock.window] + [t.model.mpc.deadlock_steps for t in teams if t.model.controller == "mpc"])
+        mpc = sum(t.n * t.model.mpc.horizon * (t.model.mpc.max_constraints + MPC_STAGE_ROWS) for t in teams if t.model.controller == "mpc")
+        extra = 8 * (2 + d) * window * n + MPC_ROW_BYTES * mpc
+        return RunSize(self.max_steps, n, per_robot, "max_steps", "teams.n" if self.teams else "robots.n", extra,
+                       "deadlock windows and MPC problems", "deadlock.window, model.mpc.horizon, model.mpc.max_constraints")
+
 
 # ---------------------------------------------------------------------------------------
 # cross-field checks
@@ -437,7 +483,7 @@ def reject_3d_obstacles_in_2d(data: Any) -> Any:
     if not isinstance(data, dict):
         return data
     obstacles = (data.get("workspace") or {}).get("obstacles") if isinstance(data.get("workspace"), dict) else None
-    for k, obs in enumerate(obstacles or []):
+    for k, obs in enumerate(obstacles if isinstance(obstacles, list) else []):
         if not isinstance(obs, dict):
             continue
         for key in ("center", "size"):
@@ -583,6 +629,21 @@ def deterministic_layout(spec: Spec) -> tuple[np.ndarray, np.ndarray, list[slice
     return np.concatenate([s for s, _ in points]), np.concatenate([g for _, g in points]), spec.team_slices()
 
 
+TRAVEL_TIME_MULTIPLE = {"single_integrator": 4.0, "double_integrator": 4.0, "unicycle": 8.0, "quadrotor": 4.0}
+"""The step-budget rule of the shipped scenarios: ``max_steps`` is this multiple of the
+longest straight-line travel time at v_max (the slowest team decides). Unicycles get
+twice as long: the three-projection controller turns before it drives and slows down
+near cell boundaries (measured: their mean travel time is about 2× the straight-line
+time, against about 1.2× for single integrators)."""
+
+
+def straight_line_budget(spec: Spec) -> int:
+    """``max_steps`` by :data:`TRAVEL_TIME_MULTIPLE`: ``ceil(k · d_max / (v_max Δt))``
+    over the teams, ``d_max`` the longest start–goal distance their layout can give."""
+    steps = [TRAVEL_TIME_MULTIPLE[t.model.kind] * t.layout.longest_trip() / (t.v_max * spec.dt) for t in spec.team_specs()]
+    return int(np.ceil(max(steps) - 1e-9))
+
+
 def start_clearances(spec: Spec) -> tuple[float, float, float]:
     """Centre distances a sampled start or goal keeps from other robots, obstacles and the
     bounds so that it lies inside its own initial B-UAVC (the premise of the guarantee).
@@ -605,28 +666,72 @@ def sample_antipodal(spec: Spec, team: TeamSpec, rng: np.random.Generator, max_t
     (robot i at a random angle within its own sector of width 2π/n, radius
     U(r_min, r_max), goal = −start), rejection-sampled robot by robot so that every start
     and goal keeps the clearances of :func:`start_clearances` from the others, the
-    obstacles and the bounds."""
+    obstacles and the bounds.
+
+    O(N log N) and the same draws as trying robot by robot: the tries of a run of robots
+    are made at once (the workspace clearances of all their candidates in one call, the
+    robot clearances against a :class:`~.neighbours.PointGrid` of the points placed so
+    far); a refused try ends the run, the next run starts from that robot's next draw,
+    and the generator is left exactly as far advanced as the tries used."""
+    from .neighbours import PointGrid
+
     lay, n = team.layout, team.n
     robot_gap, obstacle_gap, wall_gap = start_clearances(spec)
     ws = spec.workspace.build()
-    center = np.asarray(lay.center)
+    center = np.asarray(lay.center, dtype=float)
     starts = np.zeros((n, 2))
-    for i in range(n):
-        for _ in range(max_tries):
-            ang = 2 * np.pi * (i + rng.random()) / n
-            rad = rng.uniform(lay.r_min, lay.r_max)
-            s = rad * np.array([np.cos(ang), np.sin(ang)])
-            cand = np.array([center + s, center - s])
-            prev = np.vstack([center + starts[:i], center - starts[:i]])
-            if len(prev) and np.min(np.linalg.norm(prev[:, None] - cand[None], axis=-1)) < robot_gap:
-                continue
-            if np.min(ws.boundary_distance(cand)) < wall_gap or np.min(ws.obstacle_distance(cand)) < obstacle_gap:
-                continue
-            starts[i] = s
-            break
-        else:
-            raise ScenarioError("robots.layout", f"room for robot {i} after {max_tries} tries (fewer robots or a larger ring)", n)
+    placed = PointGrid(2 * n, robot_gap)
+    draws = _DrawAhead(rng)
+    i, tries, run = 0, 0, 8
+    while i < n:
+        count = min(run, n - i)
+        u = draws.peek(2 * count)
+        s = _antipodal_offsets(np.arange(i, i + count), u[0::2], u[1::2], n, lay.r_min, lay.r_max)
+        first, second = center + s, center - s
+        both = np.concatenate([first, second])
+        admissible = ((ws.boundary_distance(both) >= wall_gap) & (ws.obstacle_distance(both) >= obstacle_gap)).reshape(2, count).all(axis=0)
+        accepted = placed.accept_run(first, second, admissible)
+        starts[i : i + accepted] = s[:accepted]
+        draws.consume(2 * min(accepted + 1, count))
+        i, tries = (i + accepted, 0) if accepted else (i, tries)
+        if accepted < count:
+            tries += 1
+            if tries >= max_tries:
+                draws.settle()
+                raise ScenarioError("robots.layout", f"room for robot {i} after {max_tries} tries (fewer robots or a larger ring)", n)
+        run = min(2 * run, 4096) if accepted == count else 8
+    draws.settle()
     return center + starts, center - starts
+
+
+def _antipodal_offsets(robots: np.ndarray, u_angle: np.ndarray, u_radius: np.ndarray, n: int, r_min: float, r_max: float) -> np.ndarray:
+    """``s_i = ρ (cos φ, sin φ)`` with ``φ = 2π(i + u)/n`` and ``ρ = r_min + (r_max − r_min) u'``
+    (what ``rng.uniform(r_min, r_max)`` computes from its draw)."""
+    ang = 2 * np.pi * (robots + u_angle) / n
+    rad = r_min + (r_max - r_min) * u_radius
+    return rad[:, None] * np.column_stack([np.cos(ang), np.sin(ang)])
+
+
+class _DrawAhead:
+    """Uniform draws of ``rng`` read ahead in blocks; :meth:`settle` leaves ``rng``
+    advanced by exactly the draws consumed (``rng.random()`` and ``rng.uniform()`` each
+    take one double of the stream)."""
+
+    def __init__(self, rng: np.random.Generator):
+        self.rng, self.state = rng, rng.bit_generator.state
+        self.buffer, self.used = np.empty(0), 0
+
+    def peek(self, k: int) -> np.ndarray:
+        if self.used + k > len(self.buffer):
+            self.buffer = np.concatenate([self.buffer, self.rng.random(max(k, len(self.buffer)))])
+        return self.buffer[self.used : self.used + k]
+
+    def consume(self, k: int) -> None:
+        self.used += k
+
+    def settle(self) -> None:
+        self.rng.bit_generator.state = self.state
+        self.rng.random(self.used)
 
 
 def initial_layout(spec: Spec, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray, list[slice]]:

@@ -20,13 +20,16 @@ import pandas as pd
 import typer
 from rich.console import Console
 
-from ..core.errors import ConfigError, Interrupted, RobofleetError
+from ..core.budget import MEMORY_BUDGET_VARIABLE, parse_size
+from ..core.config import read_mapping
+from ..core.errors import ConfigError, Interrupted, RobofleetError, short_repr
 from ..core.rng import resolve_seed
 from ..core.trace import dumps_json
 from ..experiments import reproduce as run_reproduction
-from ..experiments import run_sweep, summarize_sweep
+from ..experiments import plan_sweep, run_sweep, summarize_sweep
 from ..experiments.reproductions import REPRODUCTIONS
 from ..scenarios import FAMILIES, catalogue, family_of, load_scenario, simulate
+from ..viz.replay.building import MAX_FRAMES
 from .display import COLUMN_WIDTH, MIN_TABLE_COLUMNS, PREFERRED_COLUMNS, frame_table, key_value_table
 
 INTERRUPTED = 130  # the exit status of a process stopped by Ctrl-C (128 + SIGINT)
@@ -41,6 +44,8 @@ ExecutorOption = Annotated[str, typer.Option(help="Where the runs execute: seria
 SchedulerOption = Annotated[Optional[str], typer.Option(help="Dask scheduler address, e.g. tcp://host:8786 (default: a local cluster).")]
 WorkersOption = Annotated[Optional[int], typer.Option(min=1, help="Local worker processes (default: available CPUs).")]
 QuietOption = Annotated[bool, typer.Option("--quiet", help="No progress bar and no result table.")]
+MemoryBudgetOption = Annotated[Optional[str], typer.Option(
+    "--memory-budget", help=f"Refuse runs whose arrays would need more, e.g. 8GiB (default: ${MEMORY_BUDGET_VARIABLE}, else 4GiB).")]
 
 
 class Stopped(Exception):
@@ -77,8 +82,12 @@ def run_command(
     plot: Annotated[bool, typer.Option("--plot", help="Also write plot.png.")] = False,
     overwrite: Annotated[bool, typer.Option("--overwrite", help="Replace an earlier run's files in --out.")] = False,
     quiet: QuietOption = False,
+    memory_budget: MemoryBudgetOption = None,
 ) -> None:
     """Simulate a scenario; write trace.npz, trace.json, summary.json (and plot.png, animation.gif)."""
+    use_memory_budget(memory_budget)
+    if is_sweep(scenario):
+        raise ConfigError(f"SCENARIO: expected a scenario file, received the sweep {scenario} (run it with `robofleet sweep`)")
     spec = load_scenario(scenario)
     family = family_of(spec)
     seed = resolve_seed(seed, "--seed")
@@ -114,10 +123,14 @@ def prepare_run_directory(out_dir: Path, overwrite: bool) -> None:
     ConfigError
         ``--out`` is a file or lies under one, is not writable, or holds files without ``--overwrite``.
     """
-    blocking = next((p for p in (out_dir, *out_dir.parents) if p.exists() and not p.is_dir()), None)
+    try:
+        blocking = next((p for p in (out_dir, *out_dir.parents) if p.exists() and not p.is_dir()), None)
+        present = sorted(p.name for p in out_dir.iterdir()) if out_dir.is_dir() and blocking is None else []
+    except (OSError, ValueError) as exc:  # a name too long, a NUL byte, no permission
+        raise ConfigError(f"--out: expected a usable directory path, received {short_repr(str(out_dir))} "
+                          f"({getattr(exc, 'strerror', None) or exc})") from None
     if blocking is not None:
         raise ConfigError(f"--out: expected a directory, received {out_dir} ({blocking} is a file)")
-    present = sorted(p.name for p in out_dir.iterdir()) if out_dir.is_dir() else []
     if present and not overwrite:
         shown = ", ".join(present[:4]) + (", ..." if len(present) > 4 else "")
         raise ConfigError(f"--out: expected a new or empty directory (or --overwrite), received {out_dir}, which holds {shown}")
@@ -133,10 +146,44 @@ def prepare_run_directory(out_dir: Path, overwrite: bool) -> None:
 
 
 @app.command("validate")
-def validate_command(scenario: ScenarioArgument) -> None:
-    """Check a scenario without running it."""
+def validate_command(scenario: Annotated[str, typer.Argument(help="A scenario or sweep: a YAML file or a shipped name.")],
+                     memory_budget: MemoryBudgetOption = None) -> None:
+    """Check a scenario (or a sweep, every grid point of it) without running it: everything a run would read."""
+    use_memory_budget(memory_budget)
+    if is_sweep(scenario):
+        plan = plan_sweep(scenario)
+        typer.echo(f"ok: {plan.source or scenario} (sweep: {len(plan.combinations)} grid points × {len(plan.seeds)} seeds = {len(plan.tasks)} runs)")
+        return
     spec = load_scenario(scenario)
     typer.echo(f"ok: {spec.source or scenario} ({spec.family})")
+
+
+def is_sweep(ref: str) -> bool:
+    """Whether ``ref`` names a sweep: a YAML file with a top-level ``scenario`` key and no
+    ``family`` key, or a shipped sweep name that is no scenario name."""
+    path = Path(ref)
+    if catalogue.is_file(path):
+        try:
+            data = read_mapping(path)[0]
+        except RobofleetError:
+            return False  # loading it as a scenario reports what is wrong
+        return "scenario" in data and "family" not in data
+    return not catalogue.is_file(path, exists=True) and is_shipped(ref, "sweeps") and not is_shipped(ref, "scenarios")
+
+
+def is_shipped(name: str, kind: str) -> bool:
+    """Whether ``name`` is a shipped scenario (or sweep) name."""
+    try:
+        catalogue.path(name, kind)
+    except RobofleetError:
+        return False
+    return True
+
+
+def use_memory_budget(size: str | None) -> None:
+    """Apply ``--memory-budget`` for this command (and the worker processes it starts)."""
+    if size is not None:
+        os.environ[MEMORY_BUDGET_VARIABLE] = str(parse_size(size, "--memory-budget"))
 
 
 @app.command("check")
@@ -183,8 +230,10 @@ def sweep_command(
     scheduler: SchedulerOption = None,
     workers: WorkersOption = None,
     quiet: QuietOption = False,
+    memory_budget: MemoryBudgetOption = None,
 ) -> None:
     """Run a sweep, resuming from its result store; print the means per parameter combination."""
+    use_memory_budget(memory_budget)
     with resumable():
         frame = run_sweep(sweep, executor=executor, scheduler=scheduler, progress=not quiet, workers=workers, out=out)
     failed = int(frame["error"].notna().sum())
@@ -237,6 +286,52 @@ def reproduce_command(
     typer.echo(f"wrote {out_dir}/ {{runs/, {', '.join(p.name for p in result.files)}}}{failed}")
 
 
+@app.command("view")
+def view_command(
+    run: Annotated[Path, typer.Argument(help="A run directory (or its trace.json / trace.npz), or a reproduction's output directory.")],
+    out: Annotated[Path | None, typer.Option(help="The HTML file (default: RUN/replay.html, or RUN/report.html for a reproduction).")] = None,
+    rerun: Annotated[Path | None, typer.Option("--rerun", help="Also write a recording for the Rerun viewer (FILE.rrd; needs the rerun extra).")] = None,
+    no_open: Annotated[bool, typer.Option("--no-open", help="Only write the file; do not open a browser.")] = False,
+    max_frames: Annotated[int, typer.Option(min=2, help="Frames of the replay at most (longer runs show evenly spaced states).")] = MAX_FRAMES,
+) -> None:
+    """Write a self-contained HTML replay of a run (or one report of a reproduction) and open it."""
+    from ..core.trace import Trace
+    from ..viz.replay.page import open_in_browser, write_html
+    from ..viz.replay.report import write_report
+    from ..viz.replay.target import locate
+
+    target = locate(run)
+    page = out if out is not None else target.default_output()
+    if rerun is not None and (target.kind != "run" or rerun.suffix != ".rrd"):
+        raise ConfigError(f"--rerun: expected a FILE.rrd for a run directory, received {rerun} for {target.kind} {target.directory}")
+    if target.kind == "reproduction":
+        write_report(target.directory, page)
+        written = [page]
+    else:
+        scene = replay_scene_of(Trace.load(target.directory), target.directory, max_frames)
+        written = []
+        if rerun is not None:
+            from ..viz.replay.rerun_export import write_rrd
+
+            written.append(write_rrd(scene, rerun))
+        written.insert(0, write_html(scene, page))
+    typer.echo("wrote " + ", ".join(str(p) for p in written))
+    if not no_open and not open_in_browser(page):
+        typer.echo(f"no browser to open here; open {page.resolve().as_uri()}")
+
+
+def replay_scene_of(trace, directory: Path, max_frames: int):
+    """The replay scene of a loaded trace, built by its family's replay module."""
+    from ..viz.replay import scene_builder
+
+    if trace.family not in FAMILIES:
+        raise ConfigError(f"{directory / 'trace.json'}: family: expected one of {sorted(FAMILIES)}, received {trace.family!r}")
+    try:
+        return scene_builder(trace.family)(trace, max_frames=max_frames)
+    except KeyError as exc:
+        raise ConfigError(f"{directory}: expected a complete {trace.family} trace, received one without {exc}") from None
+
+
 def show_warning(message: Warning | str, category: type[Warning], filename: str, lineno: int, file: object = None,
                  line: str | None = None) -> None:
     """Warnings (a damaged store file set aside, ...) as one line each, without source lines."""
@@ -246,6 +341,7 @@ def show_warning(message: Warning | str, category: type[Warning], filename: str,
 def main(argv: list[str] | None = None) -> None:
     """Entry point: run the CLI, turning robofleet errors into one line and exit status 2."""
     warnings.showwarning = show_warning
+    budget = os.environ.get(MEMORY_BUDGET_VARIABLE)
     try:
         code = app(args=argv, standalone_mode=False)
     except Stopped as exc:
@@ -267,6 +363,11 @@ def main(argv: list[str] | None = None) -> None:
             show()
             sys.exit(code)
         raise
+    finally:  # --memory-budget holds for one command, also when main() is called in-process
+        if budget is None:
+            os.environ.pop(MEMORY_BUDGET_VARIABLE, None)
+        else:
+            os.environ[MEMORY_BUDGET_VARIABLE] = budget
     if code == INTERRUPTED:  # typer's answer to Ctrl-C outside a sweep
         typer.echo("interrupted; nothing of the interrupted run was written", err=True)
     if isinstance(code, int) and code:

@@ -15,11 +15,12 @@ from .plan_execution import ALL_VARIANTS, Estimate, Execution, Method, PlanExecu
 from .segment_graph import IncrementalCycleDetector, Resolution, SegmentLayout, build_segment_layout, has_cycle_full
 from .simulation import simulate
 from .spec import Spec
+from .supervisor import Answer, Supervisor
 from .trajectories import Trajectories, load_trajectories, make_trajectories, save_trajectories
 
 __all__ = [
     "CoordinationSpace", "build_coordination_space", "FAMILY", "TheoryReport", "check", "check_theory",
     "ALL_VARIANTS", "Estimate", "Execution", "Method", "PlanExecutor", "Variant", "IncrementalCycleDetector",
     "Resolution", "SegmentLayout", "build_segment_layout", "has_cycle_full", "simulate", "Spec", "Trajectories",
-    "load_trajectories", "make_trajectories", "save_trajectories",
+    "load_trajectories", "make_trajectories", "save_trajectories", "Supervisor", "Answer",
 ]

@@ -29,6 +29,7 @@ import numpy as np
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
+from ..core import arguments
 from ..core.errors import InfeasibleError
 from .trajectories import Trajectories
 
@@ -110,7 +111,13 @@ def build_coordination_space(traj: Trajectories, window: int = 32, check_plan: b
     ------
     InfeasibleError
         When the plan collides (some obstacle is crossed by the plan's own path).
+    ConfigError
+        When ``traj`` is not a :class:`Trajectories`, ``window`` not an integer ≥ 1 or
+        ``check_plan`` not a bool (input validation).
     """
+    arguments.instance(traj, Trajectories, "traj", "a Trajectories plan (load_trajectories, make_trajectories)")
+    window = arguments.count(window, "window", minimum=1)
+    arguments.flag(check_plan, "check_plan")
     boxes = _window_boxes(traj, window)
     reach = 2.0 * traj.radius
     cells, pair_of_cell, pairs = [], [], []

@@ -21,9 +21,12 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.spatial import cKDTree
 
-from ..core.family import Guarantee
+from ..core import arguments
+from ..core.family import Guarantee, expect_spec
 from .coordination_space import CoordinationSpace
 from .instance import prepare_instance
+from .plan_execution import Method
+from .segment_graph import Resolution
 from .spec import Spec
 from .trajectories import Trajectories
 
@@ -101,6 +104,8 @@ def segment_overlaps(space: CoordinationSpace, limit: int | None = None) -> list
 
 def check_theory(traj: Trajectories, space: CoordinationSpace) -> TheoryReport:
     """Definition 4 and Theorem 4's precondition for a plan."""
+    arguments.instance(traj, Trajectories, "traj", "a Trajectories plan")  # input validation
+    arguments.instance(space, CoordinationSpace, "space", "its CoordinationSpace (build_coordination_space)")
     c = conflicts(traj)
     o = segment_overlaps(space)
     return TheoryReport(non_conflicting=not c, disjoint_segments=not o, conflicts=c, overlaps=o)
@@ -120,15 +125,18 @@ def check(spec: Spec, seed: int = 0) -> list[Guarantee]:
     Returns
     -------
     list[Guarantee]
-        The plan is collision-free (RMTRACK's premise, Čáp, Gregoire & Frazzoli 2016),
-        non-conflicting (Definition 4) and has disjoint collision segments (Theorem 4),
-        each with its evidence and what follows.
+        The conditions — the plan is collision-free (RMTRACK's premise, Čáp, Gregoire &
+        Frazzoli 2016), non-conflicting (Definition 4), has disjoint collision segments
+        (Theorem 4) — each with its evidence, then what follows for the scenario's policy:
+        a collision-free execution, and whether any result rules out a deadlock
+        (:func:`deadlock_guarantee`).
     """
+    expect_spec(spec, Spec, "coordination")  # input validation: a validated coordination scenario
     instance = prepare_instance(spec, seed)
     report = check_theory(instance.trajectories, instance.space)
     where = instance_note(spec, seed)
     return [plan_guarantee(instance.trajectories, instance.space, where), non_conflicting_guarantee(report, where),
-            disjoint_guarantee(report, where)]
+            disjoint_guarantee(report, where), safety_guarantee(spec, where), deadlock_guarantee(spec, report, where)]
 
 
 def instance_note(spec: Spec, seed: int) -> str:
@@ -151,18 +159,63 @@ def non_conflicting_guarantee(report: TheoryReport, where: str = "") -> Guarante
     if report.conflicts:
         c = report.conflicts[0]
         detail = (f"{len(report.conflicts)} conflicts; first: robot {c.robot} at step {c.step} is within 2r of "
-                  f"the {c.which} of robot {c.other}{where}")
+                  f"the {c.which} of robot {c.other}; Theorems 1, 2 do not apply: a deadlock need not close a cycle{where}")
     consequence = f"deadlock ⇔ cycle in the active segment graph (Theorems 1, 2): the deadlock check prevents every deadlock{where}"
     return Guarantee("non-conflicting", "Definition 4", report.non_conflicting, detail, consequence)
 
 
 def disjoint_guarantee(report: TheoryReport, where: str = "") -> Guarantee:
-    """Theorem 4's condition, with its first violation as evidence."""
+    """Theorem 4's condition, with its first violation as evidence. Theorem 4 gives an
+    acyclic segment graph; that this means no deadlock takes Definition 4 as well."""
     detail = ""
     if report.overlaps:
         o = report.overlaps[0]
-        detail = (f"{len(report.overlaps)} overlaps, a flip can deadlock; first: robot {o.robot}: steps "
+        detail = (f"{len(report.overlaps)} overlaps, a flip can close a cycle; first: robot {o.robot}: steps "
                   f"{o.first[0]}..{o.first[1]} (with robot {o.others[0]}) and {o.second[0]}..{o.second[1]} "
                   f"(with robot {o.others[1]}){where}")
-    consequence = f"no flip at an obstacle's entrance can close a cycle: no deadlock{where}"
+    no_cycle = "no flip at an obstacle's entrance can close a cycle"
+    consequence = (f"{no_cycle}: no deadlock{where}" if report.non_conflicting else
+                   f"{no_cycle}, but Definition 4 fails, so an acyclic graph does not rule out a deadlock{where}")
     return Guarantee("disjoint collision segments", "Theorem 4", report.disjoint_segments, detail, consequence)
+
+
+def safety_guarantee(spec: Spec, where: str = "") -> Guarantee:
+    """Safety of the execution: Eq. 1 keeps every robot out of the coordination-space
+    obstacles under the current labels, and a flip is only tried while the other robot
+    has not reached the obstacle (:func:`.label_flipping.flip_eligible`), when the new
+    label's invariant holds trivially. Holds for every collision-free plan and policy."""
+    flips = "" if spec.policy.method is Method.RMTRACK else "; flips only before the other robot reaches the obstacle"
+    return Guarantee("collision-free execution", "Eq. 1", True,
+                     consequence=f"no two robots come closer than 2r, whatever the disturbances{flips}{where}")
+
+
+def deadlock_guarantee(spec: Spec, report: TheoryReport, where: str = "") -> Guarantee:
+    """Whether a result rules out a deadlock for the scenario's policy, and which one.
+
+    * ``method: rmtrack`` — the plan's labels never change: deadlock-free (RMTRACK).
+    * flips with ``deadlock_check`` — a flip that closes a cycle is refused; no deadlock
+      iff Definition 4 holds (Theorems 1, 2: then a deadlock is a cycle). The literal
+      Definition 3 graph (``resolution: definition3``) holds every exact cycle, so its
+      check is conservative.
+    * flips without the check — no deadlock when Definition 4 and Theorem 4's condition
+      both hold (no flip closes a cycle, and only cycles deadlock).
+    """
+    policy = spec.policy
+    name = "no deadlock under this policy"
+    if policy.method is Method.RMTRACK:
+        return Guarantee(name, "RMTRACK, Čáp, Gregoire & Frazzoli 2016", True,
+                         consequence=f"method rmtrack keeps the plan's order: the robot furthest behind is never blocked{where}")
+    flips = f"method {policy.method.value}"
+    if policy.deadlock_check:
+        graph = ("the literal Definition 3 graph, conservative: it may refuse harmless flips"
+                 if policy.resolution is Resolution.DEFINITION3 else "the exact segment graph")
+        return Guarantee(name, "Theorems 1, 2", report.non_conflicting,
+                         detail=(f"{flips} with the deadlock check, but Definition 4 fails: a deadlock need not close a "
+                                 f"cycle, so refusing cycles does not rule it out{where}"),
+                         consequence=f"{flips}: every flip that would close a cycle is refused ({graph}){where}")
+    failed = [why for why, holds in (("Definition 4 fails", report.non_conflicting),
+                                     ("collision segments overlap, so a flip can close a cycle", report.disjoint_segments))
+              if not holds]
+    return Guarantee(name, "Theorems 2, 4", not failed,
+                     detail=f"{flips} without the deadlock check: {'; '.join(failed)}{where}",
+                     consequence=f"{flips} without the deadlock check: no flip can close a cycle, and only a cycle deadlocks{where}")

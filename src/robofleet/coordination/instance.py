@@ -104,7 +104,11 @@ def prepare_instance(spec: Spec, seed: int, workspace: Workspace | None = None) 
     if spec.trajectories is None:
         return planned_instance(plan_request(spec, seed))
     t0 = time.perf_counter()
-    return instance_from(spec.load_plan(workspace=workspace), None, 0, t0)
+    traj = spec.load_plan(workspace=workspace)
+    try:
+        return instance_from(traj, None, 0, t0)
+    except InfeasibleError as exc:  # name the plan file the instance came from
+        raise InfeasibleError(f"{spec.plan_file()}: {exc}") from None
 
 
 @functools.lru_cache(maxsize=PLAN_CACHE_SIZE)

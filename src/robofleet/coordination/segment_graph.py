@@ -22,6 +22,16 @@ Resolution (deviation from the literal Definition 3, documented in docs/results)
     encodes Eq. 1 exactly: with non-conflicting trajectories the active subgraph then has
     a cycle **iff** the execution deadlocks (Theorems 1 and 2; property-tested).
 
+    The literal graph can even be cyclic for the plan's own labels: the plan lets ``w``
+    enter ``o`` while ``a`` is still inside (above that column), which the single edge
+    forbids, and two such obstacles of one pair of overlapping collision segments close a
+    cycle although plain RMTRACK finishes the plan. The detector then keeps no order
+    (:attr:`IncrementalCycleDetector.order` is ``None``) and answers each flip with the
+    reference test on the active subgraph — a flip is kept only when the literal graph is
+    acyclic after it — until a kept flip leaves the active subgraph acyclic and a fresh
+    order is built. Since every exact cycle is a literal one, the literal check stays
+    conservative: it refuses every flip that would deadlock, and some that would not.
+
 Cycle tests
     :func:`has_cycle_full` rebuilds the active subgraph from the labels and the progress
     and runs a strongly-connected-components pass, ``O(V + E)`` — the reference.
@@ -190,34 +200,48 @@ class IncrementalCycleDetector:
         src, dst = layout.active_edges(self.labels)
         for u, w in zip(src.tolist(), dst.tolist()):
             self._insert(u, w)
-        self.order = self._initial_order().tolist()  # topological index of every vertex (a list: fast scalar access)
         self._node_robot = layout.node_robot.tolist()
         self._node_start = layout.node_start.tolist()
         self.visited_last = 0
+        # topological index of every vertex (a list: fast scalar access); None while the
+        # literal Definition 3 graph of the plan is cyclic (see the module docstring)
+        self.order = self._topological_order()
+        if self.order is None and layout.resolution is Resolution.EXACT:
+            stuck = find_cycle_nodes(layout, self.labels, self._nothing_entered())[:6].tolist()
+            raise InfeasibleError(f"trajectories: expected plan labels without a cycle, received a cycle among segments {stuck}")
 
-    def _initial_order(self) -> np.ndarray:
-        """A topological order close to plan time: Kahn's algorithm that always takes the
-        ready vertex whose segment starts earliest. New flip edges then mostly point
-        between nearby moments, which keeps the Pearce–Kelly search region small."""
+    def _nothing_entered(self) -> np.ndarray:
+        """Progress ``-1`` for every robot: the whole graph is the active subgraph."""
+        return np.full(len(self.layout.robot_first_node) - 1, -1, dtype=np.intp)
+
+    def _topological_order(self, progress: np.ndarray | None = None) -> list[int] | None:
+        """A topological order close to plan time, of the active subgraph for ``progress``
+        (the whole graph without), or ``None`` when it has a cycle.
+
+        Kahn's algorithm that always takes the ready vertex whose segment starts earliest:
+        new flip edges then mostly point between nearby moments, which keeps the
+        Pearce–Kelly search region small. Entered vertices come first, in any order (no
+        search enters them).
+        """
         v = self.layout.n_nodes
-        indegree = np.array([len(p) for p in self.pred])
         start = self.layout.node_start
-        ready = [(int(start[x]), x) for x in np.flatnonzero(indegree == 0).tolist()]
-        heapq.heapify(ready)
+        entered = np.zeros(v, dtype=bool) if progress is None else self.layout.done(np.asarray(progress))
+        indegree = np.array([sum(c for u, c in p.items() if not entered[u]) for p in self.pred], dtype=np.intp)
         order = np.full(v, -1, dtype=np.intp)
-        position = 0
+        done = np.flatnonzero(entered)
+        order[done] = np.arange(len(done))
+        position = len(done)
+        ready = [(int(start[x]), x) for x in np.flatnonzero(~entered & (indegree == 0)).tolist()]
+        heapq.heapify(ready)
         while ready:
             _, x = heapq.heappop(ready)
             order[x] = position
             position += 1
             for y, count in self.succ[x].items():
                 indegree[y] -= count
-                if indegree[y] == 0:
+                if indegree[y] == 0 and not entered[y]:
                     heapq.heappush(ready, (int(start[y]), y))
-        if position < v:
-            stuck = np.flatnonzero(order < 0)[:6].tolist()
-            raise InfeasibleError(f"trajectories: expected plan labels without a cycle, received a cycle among segments {stuck}")
-        return order
+        return order.tolist() if position == v else None
 
     def _insert(self, u: int, w: int) -> None:
         self.succ[u][w] = self.succ[u].get(w, 0) + 1
@@ -288,6 +312,8 @@ class IncrementalCycleDetector:
         subgraph. Returns ``True`` (flip kept) or ``False`` (graph unchanged, the robot
         keeps waiting).
         """
+        if self.order is None:
+            return self._flip_without_order(obstacle, new_label, progress)
         steps = None if progress is None else [int(v) for v in progress]
         old_side, new_side = self._sides(obstacle, new_label)
         old_src, old_dst = self.layout.side_edges(old_side)
@@ -305,6 +331,25 @@ class IncrementalCycleDetector:
                 return False
             added.append((u, w))
         self.labels[obstacle] = new_label
+        return True
+
+    def _flip_without_order(self, obstacle: int, new_label: int, progress: np.ndarray | None) -> bool:
+        """:meth:`try_flip` while the graph is cyclic (literal Definition 3 on the plan's
+        labels): the reference test on the tentative labels, ``O(V + E)``; a kept flip
+        that leaves the active subgraph acyclic brings back the maintained order."""
+        now = self._nothing_entered() if progress is None else np.asarray(progress)
+        tentative = self.labels.copy()
+        tentative[obstacle] = new_label
+        self.visited_last = self.layout.n_nodes
+        if has_cycle_full(self.layout, tentative, now):
+            return False
+        old_side, new_side = self._sides(obstacle, new_label)
+        for u, w in zip(*(e.tolist() for e in self.layout.side_edges(old_side))):
+            self._remove(u, w)
+        for u, w in zip(*(e.tolist() for e in self.layout.side_edges(new_side))):
+            self._insert(u, w)
+        self.labels[obstacle] = new_label
+        self.order = self._topological_order(None if progress is None else now)
         return True
 
     def _sides(self, obstacle: int, new_label: int) -> tuple[int, int]:

@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..core.family import expect_spec
 from ..core.recorder import Recorder
 from ..core.rng import resolve_seed
 from ..core.trace import Trace
@@ -58,6 +59,7 @@ def simulate(spec: Spec, seed: int | None = None, progress: bool = False) -> Tra
         Arrays, events (``flip``, ``flip_refused``, ``arrived``, ``collision``,
         ``deadlock``, ``timeout``), metadata and the results of :mod:`~robofleet.coordination.metrics`.
     """
+    expect_spec(spec, Spec, "coordination")  # input validation: a validated coordination scenario
     seed = resolve_seed(seed)
     workspace = spec.build_workspace()
     instance = prepare_instance(spec, seed, workspace)

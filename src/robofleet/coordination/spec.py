@@ -29,12 +29,14 @@ Example::
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from typing import Literal, Optional, Union
 
 import numpy as np
 from pydantic import Field, ValidationInfo, model_validator
 
+from ..core.budget import RunSize
 from ..core.config import SpecModel, as_array
 from ..core.errors import ScenarioError
 from ..core.rng import MAX_SEED
@@ -44,7 +46,10 @@ from .maps import x_corridor_workspace
 from .plan_execution import Estimate, Method
 from .planner import check_endpoints
 from .segment_graph import Resolution
-from .trajectories import Trajectories, load_trajectories
+from .trajectories import Trajectories, first_plan_collision, load_trajectories
+
+ROADMAP_EDGE_BYTES = 200
+"""Memory of one candidate roadmap edge while the roadmap is built (its node pair and segment)."""
 
 
 class DisturbanceRegionSpec(RegionSpec):
@@ -203,6 +208,28 @@ class Spec(SpecModel):
                 raise ScenarioError(f"trajectories: {inner}", exc.expected, exc.received) from None
         return self
 
+    # -- memory budget (input validation, robofleet.core.budget) --------------------------
+    def run_size(self) -> RunSize:
+        """What a run holds: per robot and step a position, the progress and two flags;
+        a planned instance adds the roadmap (grid nodes ``grid_spacing`` apart, each joined
+        to the nodes within ``connection_radius``) and the plan of up to
+        ``planner.max_steps + 1`` points per robot (held, then recorded)."""
+        n = self.robots.n
+        robots_field = "robots.starts" if self.robots.placement == "explicit" else "robots.count"
+        if self.trajectories is not None:  # a plan file: its points (a CSV row of ≥ 8 bytes gives 16), held and recorded
+            path = plan_path(self.trajectories, {"source": self.source})
+            size = path.stat().st_size if path is not None and path.is_file() else 0
+            return RunSize(self.simulation.max_steps, n, 16 + 8 + 2, "simulation.max_steps", robots_field,
+                           2 * 2 * size if path is not None and path.suffix.lower() == ".csv" else 0, "plan", "trajectories")
+        xmin, ymin, xmax, ymax = self.build_workspace().extent
+        spacing, reach = self.planner.grid_spacing, self.planner.connection_radius
+        nodes = math.ceil((xmax - xmin) / spacing) * math.ceil((ymax - ymin) / spacing) + 2 * n
+        edges = nodes * math.pi * (reach / spacing + 1) ** 2
+        plan = 2 * 16 * n * (self.planner.max_steps + 1)
+        return RunSize(self.simulation.max_steps, n, 16 + 8 + 2, "simulation.max_steps", robots_field,
+                       int(16 * nodes + ROADMAP_EDGE_BYTES * edges + plan), "roadmap and plan",
+                       "planner.grid_spacing, planner.connection_radius, planner.max_steps")
+
     def build_workspace(self) -> Workspace:
         """The scenario's workspace with its disturbance regions (``probability`` attributes)."""
         return self.workspace.build(self.disturbance.region_probability)
@@ -218,13 +245,15 @@ class Spec(SpecModel):
         ------
         ScenarioError
             Naming the plan file: unreadable, bad row or column, wrong robot count, a
-            point closer than ``r`` to a wall or an obstacle.
+            point closer than ``r`` to a wall or an obstacle, two robots closer than ``2r``
+            (the plan must be collision-free, RMTRACK's premise).
         """
         path = path or self.plan_file()
         traj = load_trajectories(path, self.robots.radius, self.simulation.dt)
         if self.robots.placement == "explicit" and traj.n_robots != self.robots.n:
             raise ScenarioError("trajectories", f"{self.robots.n} trajectories (one per robot)", traj.n_robots, source=str(path))
         check_inside(traj, workspace or self.build_workspace(), str(path))
+        check_collision_free(traj, str(path))
         return traj
 
 
@@ -238,6 +267,15 @@ def plan_path(trajectories: str, context: dict | None) -> Path | None:
         return None
     source = context["source"]
     return Path(source).parent / path if source else path
+
+
+def check_collision_free(traj: Trajectories, source: str) -> None:
+    """No two robots of a loaded plan come closer than ``2r`` when it runs undisturbed."""
+    hit = first_plan_collision(traj)
+    if hit is not None:
+        i, j, step, distance = hit
+        raise ScenarioError("", f"a collision-free plan (robots at least 2r = {2 * traj.radius:g} apart at every step)",
+                            f"robots {i} and {j} {distance:.4g} apart at plan step {step}", source=source)
 
 
 def check_inside(traj: Trajectories, workspace: Workspace, source: str) -> None:

@@ -14,6 +14,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ..core import arguments
+from ..core.config import MAX_MAGNITUDE
 from ..core.errors import ScenarioError
 
 
@@ -70,19 +72,25 @@ def make_trajectories(paths: list[np.ndarray], radius: float, dt: float, source:
     ScenarioError
         Wrong shape, non-finite values, ``radius <= 0`` or ``dt <= 0``.
     """
-    if not np.isfinite(radius) or radius <= 0:
+    if not is_positive_number(radius):
         raise ScenarioError("robots.radius", "a number > 0", radius, source=source)
-    if not np.isfinite(dt) or dt <= 0:
+    if not is_positive_number(dt):
         raise ScenarioError("simulation.dt", "a number > 0", dt, source=source)
+    paths = arguments.sequence(paths, "paths", "(K + 1, 2) arrays, one per robot")
     if len(paths) == 0:
         raise ScenarioError("trajectories", "at least one trajectory", "none", source=source)
     clean = []
     for i, path in enumerate(paths):
-        arr = np.asarray(path, dtype=float)
+        try:
+            arr = np.asarray(path, dtype=float)
+        except (TypeError, ValueError):
+            raise ScenarioError(f"trajectories[{i}]", "an array shaped (K+1, 2) of numbers", path, source=source) from None
         if arr.ndim != 2 or arr.shape[1] != 2 or arr.shape[0] < 1:
             raise ScenarioError(f"trajectories[{i}]", "an array shaped (K+1, 2)", f"shape {arr.shape}", source=source)
         if not np.all(np.isfinite(arr)):
             raise ScenarioError(f"trajectories[{i}]", "finite coordinates", "NaN or inf", source=source)
+        if np.abs(arr).max(initial=0.0) > MAX_MAGNITUDE:  # input validation: as every number of a scenario
+            raise ScenarioError(f"trajectories[{i}]", f"coordinates of magnitude at most {MAX_MAGNITUDE:g}", float(np.abs(arr).max()), source=source)
         clean.append(_trim_parking(arr))
     lengths = np.array([len(p) - 1 for p in clean], dtype=np.intp)
     padded = np.empty((len(clean), int(lengths.max()) + 1, 2))
@@ -90,6 +98,33 @@ def make_trajectories(paths: list[np.ndarray], radius: float, dt: float, source:
         padded[i, : len(p)] = p
         padded[i, len(p):] = p[-1]
     return Trajectories(padded, lengths, float(radius), float(dt))
+
+
+def first_plan_collision(traj: Trajectories, chunk_cells: int = 2_000_000) -> tuple[int, int, int, float] | None:
+    """The first plan step at which two robots executing the plan undisturbed are closer
+    than ``2r`` (``(i, j, step, distance)``), or ``None`` for a collision-free plan.
+
+    The same test the coordination space makes on the plan's own path (a parked robot
+    stays at its goal); ``O(K n²)`` in chunks of at most ``chunk_cells`` distances.
+    """
+    n, steps = traj.n_robots, int(traj.lengths.max(initial=0)) + 1
+    per_chunk = max(1, chunk_cells // max(n * n, 1))
+    upper = np.triu(np.ones((n, n), dtype=bool), k=1)
+    for t0 in range(0, steps, per_chunk):
+        t = np.minimum(np.arange(t0, min(steps, t0 + per_chunk))[:, None], traj.lengths[None, :])
+        pos = traj.positions[np.arange(n)[None, :], t]
+        d2 = ((pos[:, :, None] - pos[:, None, :]) ** 2).sum(-1)
+        hit = (d2 < (2 * traj.radius) ** 2) & upper
+        if hit.any():
+            k, i, j = (int(v) for v in np.argwhere(hit)[0])
+            return i, j, t0 + k, float(np.sqrt(d2[k, i, j]))
+    return None
+
+
+def is_positive_number(value: object) -> bool:
+    """A finite real number > 0 (not a bool), for the input checks of :func:`make_trajectories`."""
+    return isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, (bool, np.bool_)) \
+        and bool(np.isfinite(value)) and value > 0
 
 
 def _trim_parking(path: np.ndarray) -> np.ndarray:
@@ -114,7 +149,7 @@ def load_trajectories(path: str | Path, radius: float, dt: float) -> Trajectorie
     ScenarioError
         Unreadable file, unknown extension, wrong shape, non-finite values.
     """
-    p = Path(path)
+    p = arguments.path(path, "path")
     source = str(p)
     if p.suffix.lower() == ".npz":
         paths = _read_npz(p, source)
@@ -193,6 +228,8 @@ def _csv_cell(text: str, row: int, column: str, source: str) -> float:
     except ValueError:
         value = float("nan")
     integer = column in ("robot", "step")
+    if np.isfinite(value) and abs(value) > MAX_MAGNITUDE:  # input validation: as every number of a scenario
+        raise ScenarioError(f"row {row}, column {column}", f"a number of magnitude at most {MAX_MAGNITUDE:g}", text.strip(), source=source)
     if not np.isfinite(value) or (integer and (value < 0 or value != int(value))):
         expected = "a non-negative integer" if integer else "a finite number"
         raise ScenarioError(f"row {row}, column {column}", expected, text.strip(), source=source)

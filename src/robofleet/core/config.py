@@ -11,14 +11,17 @@ from __future__ import annotations
 
 import copy
 import math
+from collections import abc
 from pathlib import Path
 from typing import Any, Mapping, TypeVar
 
 import numpy as np
 import yaml
 from pydantic import BaseModel, ConfigDict, PrivateAttr, ValidationError, model_validator
+from pydantic.fields import FieldInfo
 
-from .errors import ScenarioError
+from .budget import RunSize, check_run_size
+from .errors import Described, RobofleetError, ScenarioError, short_repr
 
 _Model = TypeVar("_Model", bound=BaseModel)
 
@@ -27,24 +30,38 @@ YAML_LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
 
 
 MAX_MAGNITUDE = 1e9
-"""The largest magnitude any real number of a spec may have: far beyond every sensible
-length, time or speed here, and far below where float arithmetic loses metres."""
+"""The largest magnitude any number of a spec may have (integers too, unless their field
+declares its own upper bound, as seeds do): far beyond every sensible length, time,
+speed or count here, and far below where float arithmetic loses metres."""
+
+MAX_VALUES = 2_000_000
+"""The most values (numbers, strings, lists, mappings; shared ones counted each time they
+appear) a scenario or sweep may hold: far beyond every sensible file, and a bound on the
+work validation does (a YAML alias "bomb" expands past it at once)."""
 
 
 class SpecModel(BaseModel):
-    """Base of every scenario model: frozen, keyword-only, unknown keys are errors, and
-    every number in it (fields, and lists or mappings of numbers) is finite with a
-    magnitude of at most :data:`MAX_MAGNITUDE` (integers: any size)."""
+    """Base of every scenario model: frozen, keyword-only, unknown keys are errors, NaN
+    and ±inf are refused where a number is expected, and every number in it (fields, and
+    lists or mappings of numbers) has a magnitude of at most :data:`MAX_MAGNITUDE`
+    (integers: unless the field declares its own upper bound, as seeds do)."""
 
-    model_config = ConfigDict(extra="forbid", frozen=True, arbitrary_types_allowed=True)
+    model_config = ConfigDict(extra="forbid", frozen=True, arbitrary_types_allowed=True, allow_inf_nan=False)
     _source: str | None = PrivateAttr(default=None)
 
     @model_validator(mode="after")
     def _finite_numbers(self) -> "SpecModel":
-        for name in type(self).model_fields:
-            bad = first_unreasonable_number(getattr(self, name), name)
+        for name, info in type(self).model_fields.items():
+            bad = first_unreasonable_number(getattr(self, name), name, integer_limit(info))
             if bad is not None:
                 raise ScenarioError(bad[0], f"a finite number of magnitude at most {MAX_MAGNITUDE:g}", bad[1])
+        return self
+
+    @model_validator(mode="after")
+    def _fits_memory(self) -> SpecModel:
+        # before the family's own cross-checks (parent validators run first), so that a
+        # scenario too big to run is refused before its layout of a billion robots is checked
+        check_run_size(self.run_size())
         return self
 
     @property
@@ -58,15 +75,31 @@ class SpecModel(BaseModel):
         name = getattr(self, "name", "")
         return str(name) if name else (Path(self._source).stem if self._source else "")
 
+    def run_size(self) -> RunSize | None:
+        """What a run of this scenario holds (steps × robots × bytes; see
+        :mod:`robofleet.core.budget`), checked against the memory budget when the scenario
+        is loaded; ``None`` for models that are not a whole scenario."""
+        return None
 
-def first_unreasonable_number(value: Any, path: str) -> tuple[str, Any] | None:
+
+def integer_limit(info: FieldInfo) -> float | None:
+    """The largest integer magnitude a field accepts: its own upper bound (``le``/``lt``)
+    if it declares one, none for an untyped (``Any``) field, else :data:`MAX_MAGNITUDE`."""
+    if info.annotation is Any:
+        return None
+    if any(getattr(m, "le", None) is not None or getattr(m, "lt", None) is not None for m in info.metadata):
+        return None
+    return MAX_MAGNITUDE
+
+
+def first_unreasonable_number(value: Any, path: str, integer_limit: float | None = None) -> tuple[str, Any] | None:
     """``(field path, number)`` of the first NaN, infinite or huge number in ``value``
     (a number, or nested lists, tuples, mappings and arrays of them); nested spec models
-    check themselves."""
+    check themselves. Integers are checked against ``integer_limit`` (``None``: any size)."""
     if isinstance(value, (bool, np.bool_, str, BaseModel)) or value is None:
         return None
     if isinstance(value, (int, np.integer)):
-        return None  # integers (counts, seeds up to 2**63) are exact and always finite
+        return None if integer_limit is None or abs(int(value)) <= integer_limit else (path, value)
     if isinstance(value, (float, np.floating)):
         number = float(value)
         return None if math.isfinite(number) and abs(number) <= MAX_MAGNITUDE else (path, value)
@@ -75,31 +108,96 @@ def first_unreasonable_number(value: Any, path: str) -> tuple[str, Any] | None:
         return None if not len(bad) else (f"{path}[{bad[0]}]", value.flat[bad[0]])
     items = value.items() if isinstance(value, Mapping) else enumerate(value) if isinstance(value, (list, tuple)) else ()
     for key, item in items:
-        found = first_unreasonable_number(item, f"{path}.{key}" if isinstance(value, Mapping) else f"{path}[{key}]")
+        found = first_unreasonable_number(item, f"{path}.{key}" if isinstance(value, Mapping) else f"{path}[{key}]", integer_limit)
         if found is not None:
             return found
     return None
 
 
+class StrictYAMLLoader(YAML_LOADER):
+    """The safe loader, refusing a key given twice in one mapping (YAML would keep the last)."""
+
+    def construct_mapping(self, node, deep=False):
+        seen = set()
+        for key_node, _ in node.value:
+            if isinstance(key_node, yaml.ScalarNode) and key_node.tag != "tag:yaml.org,2002:merge":
+                key = self.construct_object(key_node)
+                if key in seen:
+                    raise yaml.constructor.ConstructorError(None, None, f"the key {key!r} given twice", key_node.start_mark)
+                seen.add(key)
+        return super().construct_mapping(node, deep)
+
+
 def read_mapping(path_or_mapping: str | Path | Mapping[str, Any]) -> tuple[dict, str | None]:
-    """Return ``(mapping, source)`` from a YAML file path or an in-memory mapping."""
+    """Return ``(mapping, source)`` from a YAML file path or an in-memory mapping.
+
+    Raises
+    ------
+    ScenarioError
+        Naming the file: unreadable, not UTF-8 text, not YAML (a duplicate key, an integer
+        of thousands of digits, nesting too deep), not a mapping at the top level, or
+        holding more than :data:`MAX_VALUES` values.
+    """
     if isinstance(path_or_mapping, Mapping):
+        check_value_count(path_or_mapping, None)
         return copy.deepcopy(dict(path_or_mapping)), None
     path = Path(path_or_mapping)
     source = str(path)
     try:
-        text = path.read_text()
+        text = path.read_bytes().decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        raise ScenarioError("", "a UTF-8 text file", Described(f"a byte {exc.object[exc.start:exc.start + 1]!r} at offset {exc.start} that is not UTF-8"),
+                            source=source) from None
     except OSError as exc:
         raise ScenarioError("", "a readable YAML file", f"{type(exc).__name__}: {exc.strerror}", source=source) from None
+    except ValueError as exc:  # a path the system cannot look up (a NUL byte)
+        raise ScenarioError("", "a readable YAML file", str(exc), source=short_repr(source, 60)) from None
+    data = parse_yaml(text, source)
+    if not isinstance(data, dict):
+        raise ScenarioError("", "a mapping at the top level", type(data).__name__, source=source)
+    check_value_count(data, source)
+    return data, source
+
+
+def parse_yaml(text: str, source: str) -> Any:
+    """The YAML document ``text``, or a one-line :class:`ScenarioError` naming the line."""
     try:
-        data = yaml.load(text, Loader=YAML_LOADER)
+        return yaml.load(text, Loader=StrictYAMLLoader)
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         where = f"line {mark.line + 1}" if mark else ""
-        raise ScenarioError(where, "valid YAML", str(getattr(exc, "problem", exc)), source=source) from None
-    if not isinstance(data, dict):
-        raise ScenarioError("", "a mapping at the top level", type(data).__name__, source=source)
-    return data, source
+        problem = str(getattr(exc, "problem", None) or exc).splitlines()[0]
+        raise ScenarioError(where, "valid YAML", problem, source=source) from None
+    except (ValueError, RecursionError) as exc:  # an integer of thousands of digits, nesting beyond the stack
+        raise ScenarioError("", "valid YAML of reasonable size", str(exc).split(";")[0], source=source) from None
+
+
+CONTAINERS = (dict, list, tuple, abc.Mapping)
+
+
+def check_value_count(data: Any, source: str | None, limit: int = MAX_VALUES) -> None:
+    """Refuse data holding more than ``limit`` values, counting shared (aliased) values
+    each time they appear (each shared part is sized once), and data that contains itself."""
+    sizes: dict[int, int] = {}  # values under each container, itself included
+    inside: set[int] = set()
+    stack: list[tuple[Any, bool]] = [(data, False)]
+    while stack:
+        node, leaving = stack.pop()
+        key = id(node)
+        children = list(node.values()) if isinstance(node, (dict, abc.Mapping)) else node
+        if leaving:
+            inside.discard(key)
+            sizes[key] = 1 + sum(sizes.get(id(child), 1) for child in children)
+            if sizes[key] > limit:
+                raise ScenarioError("", f"at most {limit:,} values (counting every alias expansion)", Described("more"), source=source)
+            continue
+        if key in sizes:
+            continue
+        if key in inside:
+            raise ScenarioError("", "data that does not contain itself", Described("a recursive alias"), source=source)
+        inside.add(key)
+        stack.append((node, True))
+        stack.extend((child, False) for child in children if isinstance(child, CONTAINERS) and id(child) not in sizes)
 
 
 def validate_model(model: type[_Model], data: Mapping[str, Any], source: str | None) -> _Model:
@@ -111,6 +209,9 @@ def validate_model(model: type[_Model], data: Mapping[str, Any], source: str | N
     try:
         return model.model_validate(data, context={"source": source})
     except ValidationError as exc:
+        inner = (exc.errors(include_url=False)[0].get("ctx") or {}).get("error")
+        if isinstance(inner, RobofleetError) and not isinstance(inner, ScenarioError):
+            raise inner from None  # not about the data (a bad ROBOFLEET_MEMORY_BUDGET): as raised
         raise scenario_error_from(exc, source) from None
 
 
@@ -120,6 +221,8 @@ def scenario_error_from(exc: ValidationError, source: str | None) -> ScenarioErr
     loc = ".".join(str(p) for p in err["loc"])
     inner = (err.get("ctx") or {}).get("error")
     if isinstance(inner, ScenarioError):
+        if inner.source and inner.source != source:  # a file the scenario names (a plan, a pattern)
+            return ScenarioError(": ".join(p for p in (loc, inner.source, inner.field) if p), inner.expected, inner.received, source=source)
         field = ".".join(p for p in (loc, inner.field) if p)
         return ScenarioError(field, inner.expected, inner.received, source=source)
     if err["type"] == "extra_forbidden":

@@ -67,7 +67,16 @@ class Interrupted(KeyboardInterrupt):
     the store holds and how to resume."""
 
 
+class Described(str):
+    """A received value given as a description (``"8 robots × 500 steps ≈ 1 MiB"``),
+    shown in messages without quotes."""
+
+    def __repr__(self) -> str:
+        return str(self)
+
+
 def short_repr(value: Any, limit: int = 80) -> str:
-    """``repr(value)`` cut to ``limit`` characters, on one line."""
+    """``repr(value)`` cut to ``limit`` characters (twice that for a :class:`Described`), on one line."""
+    limit = 2 * limit if isinstance(value, Described) else limit
     text = repr(value).replace("\n", " ")
     return text if len(text) <= limit else text[: limit - 3] + "..."

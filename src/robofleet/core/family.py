@@ -9,6 +9,7 @@ conformance suite read it, in the spirit of Gymnasium's registration table.
 
 from __future__ import annotations
 
+import functools
 import importlib
 from dataclasses import dataclass, field
 from types import ModuleType
@@ -45,6 +46,27 @@ class Guarantee:
         return f"{self.name} ({self.reference}): {verdict}" + (f" — {tail}" if tail else "")
 
 
+def expect_spec(spec: Any, model: type[SpecModel], family: str) -> None:
+    """Refuse anything but a validated ``model`` (one line naming what was received)."""
+    if not isinstance(spec, model):
+        raise ConfigError(f"spec: expected a validated {family} scenario (a {model.__module__}.{model.__name__}, "
+                          f"as robofleet.load_scenario returns), received {type(spec).__name__}")
+
+
+def spec_checked(function: Callable, model: type[SpecModel], family: str) -> Callable:
+    """``function(spec, ...)`` that first checks ``spec`` with :func:`expect_spec` (applied once)."""
+    if getattr(function, "__robofleet_checked__", None) is model:
+        return function
+
+    @functools.wraps(function)
+    def checked(spec: Any, *args: Any, **kwargs: Any) -> Any:
+        expect_spec(spec, model, family)
+        return function(spec, *args, **kwargs)
+
+    checked.__robofleet_checked__ = model  # type: ignore[attr-defined]
+    return checked
+
+
 class SimulateFunction(Protocol):
     def __call__(self, spec: Any, seed: int | None = None, progress: bool = False) -> Trace: ...
 
@@ -78,6 +100,11 @@ class Family:
     viz: str
     budget: str
     results: Mapping[str, str] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        # the entry points refuse anything but this family's spec in one line, before running
+        object.__setattr__(self, "simulate", spec_checked(self.simulate, self.spec, self.name))
+        object.__setattr__(self, "check", spec_checked(self.check, self.spec, self.name))
 
     def viz_module(self) -> ModuleType:
         """The figures module (imported now; matplotlib is loaded only here).

@@ -38,12 +38,18 @@ from typing import Any, Callable, Iterator
 
 import numpy as np
 
-from .errors import ConfigError
+from .budget import HOW_TO_RAISE, format_bytes, memory_budget
+from .errors import ConfigError, short_repr
 from .progress import tracked
 from .trace import Trace
 from .workspace import Workspace
 
 StepFunction = Callable[[int], "bool | None"]
+
+
+def is_integer(value: Any) -> bool:
+    """A Python or numpy integer, not a bool."""
+    return isinstance(value, (int, np.integer)) and not isinstance(value, (bool, np.bool_))
 
 
 class Recorder:
@@ -62,10 +68,17 @@ class Recorder:
     """
 
     def __init__(self, max_steps: int, n_robots: int, *, label: str = "", progress: bool = False):
-        if int(max_steps) < 1:
-            raise ConfigError(f"max_steps: expected an integer ≥ 1, received {max_steps!r}")
+        if not is_integer(max_steps) or max_steps < 1:
+            raise ConfigError(f"max_steps: expected an integer ≥ 1, received {short_repr(max_steps)}")
+        if not is_integer(n_robots) or n_robots < 0:
+            raise ConfigError(f"n_robots: expected an integer ≥ 0, received {short_repr(n_robots)}")
         self.max_steps = int(max_steps)
         self.n_robots = int(n_robots)
+        self._budget = memory_budget()
+        self._allocated = 0
+        self._reserve("step_seconds", self.max_steps * 8 + self.n_robots * 8)
+        if not isinstance(progress, (bool, np.bool_)):
+            raise ConfigError(f"progress: expected True or False, received {short_repr(progress)}")
         self.label = label
         self.progress = bool(progress)
         self.events: list[dict[str, Any]] = []
@@ -89,7 +102,16 @@ class Recorder:
     def _allocate(self, name: str, rows: int, shape: tuple[int, ...], dtype: Any, fill: Any) -> np.ndarray:
         if name in self._state or name in self._step:
             raise ConfigError(f"recorder: array {name!r}: expected a new name, received one already declared")
+        self._reserve(name, rows * int(np.prod(shape, dtype=np.float64)) * np.dtype(dtype).itemsize)
         return np.full((rows, *shape), fill, dtype=dtype)
+
+    def _reserve(self, name: str, nbytes: float) -> None:
+        """Count ``nbytes`` more against the memory budget, refusing before allocating."""
+        if self._allocated + nbytes > self._budget:
+            raise ConfigError(f"max_steps, n_robots: expected recorded arrays within the memory budget of {format_bytes(self._budget)} "
+                              f"(fewer steps or robots, or raise it with {HOW_TO_RAISE}), received {self.n_robots} robots × "
+                              f"{self.max_steps} steps needing {format_bytes(self._allocated + nbytes)} at array {name!r}")
+        self._allocated += int(nbytes)
 
     def __getitem__(self, name: str) -> np.ndarray:
         """The full preallocated array ``name`` (rows past the current step are unset)."""

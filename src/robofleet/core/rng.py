@@ -53,10 +53,18 @@ def resolve_seed(seed: object = None, where: str = "seed") -> int:
 
 
 def as_generator(rng: RngLike = None) -> np.random.Generator:
-    """Normalise ``rng`` to a ``numpy.random.Generator`` (``default_rng`` semantics)."""
-    if isinstance(rng, (bool, np.bool_)):
-        raise TypeError(f"rng: expected int, SeedSequence, Generator or None, received {rng!r}")
-    return np.random.default_rng(rng)
+    """Normalise ``rng`` to a ``numpy.random.Generator`` (``default_rng`` semantics).
+
+    Raises
+    ------
+    ConfigError
+        For anything but ``None``, a non-negative integer, a ``SeedSequence`` or a ``Generator``.
+    """
+    if isinstance(rng, (np.random.Generator, np.random.SeedSequence)) or rng is None:
+        return np.random.default_rng(rng)
+    if isinstance(rng, (bool, np.bool_)) or not isinstance(rng, (int, np.integer)) or int(rng) < 0:
+        raise ConfigError(f"rng: expected a non-negative integer, a SeedSequence, a Generator or None, received {short_repr(rng)}")
+    return np.random.default_rng(int(rng))
 
 
 def spawn_seeds(root: int, n: int) -> list[int]:
@@ -65,7 +73,10 @@ def spawn_seeds(root: int, n: int) -> list[int]:
     Uses ``SeedSequence(root).spawn(n)``; the integers are stored with every result row
     so that a single run can be replayed with ``seed=row["seed"]``.
     """
-    children = np.random.SeedSequence(root).spawn(n)
+    root = resolve_seed(root, "root")
+    if isinstance(n, (bool, np.bool_)) or not isinstance(n, (int, np.integer)) or n < 0:
+        raise ConfigError(f"n: expected a non-negative integer count of seeds, received {short_repr(n)}")
+    children = np.random.SeedSequence(root).spawn(int(n))
     return [int(c.generate_state(2, dtype=np.uint64)[0] >> np.uint64(1)) for c in children]
 
 
@@ -76,8 +87,10 @@ def keyed_generator(seed: int, *keys: int | str) -> np.random.Generator:
     (seed, robot, step) for disturbances: the draw depends only on the key, never on how
     many draws other robots or methods made before.
     """
-    words = [int(seed) & (2**63 - 1)]
+    words = [resolve_seed(seed, "seed")]
     for key in keys:
+        if isinstance(key, (bool, np.bool_)) or not isinstance(key, (str, int, np.integer)):
+            raise ConfigError(f"keys: expected integers or strings, received {short_repr(key)}")
         if isinstance(key, str):
             words.append(int.from_bytes(hashlib.blake2b(key.encode(), digest_size=8).digest(), "little"))
         else:

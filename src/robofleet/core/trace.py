@@ -11,16 +11,19 @@ every sweep can report them; :meth:`Trace.summary` puts the core keys in front o
 from __future__ import annotations
 
 import json
+import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from .errors import TraceError
+from .errors import RobofleetError, TraceError, short_repr
 from .workspace import Region, Workspace
 
 TRACE_VERSION = 2
+TRACE_KEYS = ("family", "events", "metadata", "results")
+"""The keys of ``trace.json`` besides ``version`` and ``workspace``."""
 CORE_SUMMARY_KEYS = ("family", "scenario", "seed", "success", "n_robots", "n_steps", "wall_seconds")
 """The keys every family's summary starts with."""
 
@@ -92,17 +95,33 @@ class Trace:
 
     @classmethod
     def load(cls, directory: str | Path) -> "Trace":
-        """Read a trace written by :meth:`save`."""
+        """Read a trace written by :meth:`save`.
+
+        Raises
+        ------
+        TraceError
+            ``directory`` is not a path, or holds no readable, complete trace of this version.
+        """
+        if not isinstance(directory, (str, Path)):
+            raise TraceError(f"directory: expected a trace directory path, received {short_repr(directory)}")
         d = Path(directory)
         try:
             doc = json.loads((d / "trace.json").read_text())
-            with np.load(d / "trace.npz") as npz:
+            with np.load(d / "trace.npz", allow_pickle=False) as npz:
                 arrays = {k: npz[k] for k in npz.files}
-        except (OSError, ValueError) as exc:
+        except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:
             raise TraceError(f"{d}: expected a trace directory with trace.json and trace.npz, received an unreadable one ({exc})") from None
-        if doc.get("version") != TRACE_VERSION:
-            raise TraceError(f"{d / 'trace.json'}: version: expected {TRACE_VERSION}, received {doc.get('version')!r}")
-        return cls(doc["family"], arrays, doc["events"], doc["metadata"], doc["results"], _workspace_from_json(doc.get("workspace")))
+        if not isinstance(doc, dict) or doc.get("version") != TRACE_VERSION:
+            received = doc.get("version") if isinstance(doc, dict) else type(doc).__name__
+            raise TraceError(f"{d / 'trace.json'}: version: expected {TRACE_VERSION}, received {received!r}")
+        missing = [key for key in TRACE_KEYS if key not in doc]
+        if missing:
+            raise TraceError(f"{d / 'trace.json'}: expected the keys {list(TRACE_KEYS)}, received none for {missing}")
+        try:
+            workspace = _workspace_from_json(doc.get("workspace"))
+        except (KeyError, TypeError, ValueError, RobofleetError) as exc:
+            raise TraceError(f"{d / 'trace.json'}: workspace: expected bounds, obstacles and regions, received an unreadable one ({exc})") from None
+        return cls(doc["family"], arrays, doc["events"], doc["metadata"], doc["results"], workspace)
 
 
 def _workspace_to_json(ws: Workspace | None):

@@ -17,6 +17,20 @@ from shapely.geometry import Polygon, box
 from shapely.geometry.base import BaseGeometry
 
 from . import geometry
+from .errors import ConfigError, short_repr
+
+
+def polygon_vertices(value: Any, name: str) -> np.ndarray:
+    """``value`` as finite float vertices ``(k, 2)``, ``k ≥ 3``, or a one-line :class:`ConfigError`."""
+    try:
+        vertices = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        vertices = None
+    if vertices is None or vertices.ndim != 2 or vertices.shape[1] != 2 or len(vertices) < 3:
+        raise ConfigError(f"{name}: expected polygon vertices shaped (k, 2) with k ≥ 3, received {short_repr(value)}")
+    if not np.all(np.isfinite(vertices)):
+        raise ConfigError(f"{name}: expected finite coordinates, received {short_repr(value)}")
+    return vertices
 
 
 @dataclass(frozen=True)
@@ -55,6 +69,16 @@ class Workspace:
     bounds: np.ndarray
     obstacles: tuple[np.ndarray, ...] = ()
     regions: tuple[Region, ...] = ()
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "bounds", polygon_vertices(self.bounds, "bounds"))
+        if isinstance(self.obstacles, np.ndarray) or not isinstance(self.obstacles, Iterable):
+            raise ConfigError(f"obstacles: expected a sequence of (k, 2) vertex arrays, received {short_repr(self.obstacles)}")
+        object.__setattr__(self, "obstacles", tuple(polygon_vertices(o, f"obstacles[{k}]") for k, o in enumerate(self.obstacles)))
+        regions = tuple(self.regions) if isinstance(self.regions, Iterable) else None
+        if regions is None or not all(isinstance(r, Region) for r in regions):
+            raise ConfigError(f"regions: expected a sequence of Region, received {short_repr(self.regions)}")
+        object.__setattr__(self, "regions", regions)
 
     @classmethod
     def rectangle(cls, xmin: float, ymin: float, xmax: float, ymax: float, obstacles: Iterable[np.ndarray] = (), regions: Iterable[Region] = ()) -> "Workspace":

@@ -26,6 +26,7 @@ import numpy as np
 import pandas as pd
 
 from ..core.config import read_mapping
+from ..core import arguments
 from ..core.errors import ConfigError
 from ..scenarios import catalogue
 from .executors import Executor, as_executor
@@ -156,8 +157,12 @@ def reproduce(
     executor, scheduler, workers, progress:
         As for :func:`robofleet.experiments.run_tasks`.
     """
+    arguments.instance(reproduction, Reproduction, "reproduction", "a Reproduction (see robofleet.experiments.reproductions.REPRODUCTIONS)")
     as_executor(executor)
-    if budget not in reproduction.budgets:
+    arguments.path(out, "out", optional=True)
+    workers = arguments.count(workers, "workers", minimum=1, optional=True)
+    progress = arguments.flag(progress, "progress")
+    if not isinstance(budget, str) or budget not in reproduction.budgets:
         raise ConfigError(f"--budget: expected one of {sorted(reproduction.budgets)}, received {budget!r}")
     if seeds is not None and (isinstance(seeds, (bool, np.bool_)) or not isinstance(seeds, (int, np.integer)) or seeds < 1):
         raise ConfigError(f"--seeds: expected a positive integer, received {seeds!r}")

@@ -53,6 +53,7 @@ try:
 except ImportError:  # Windows: no advisory locks, the store then assumes one writer
     fcntl = None
 
+from ..core import arguments
 from ..core.errors import ConfigError
 from ..core.trace import to_plain
 
@@ -98,7 +99,7 @@ class ResultStore:
     """
 
     def __init__(self, directory: str | Path):
-        self.directory = Path(directory)
+        self.directory = arguments.path(directory, "directory")
 
     def __repr__(self) -> str:
         return f"ResultStore({str(self.directory)!r})"

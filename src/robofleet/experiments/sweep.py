@@ -35,16 +35,18 @@ import functools
 import hashlib
 import itertools
 import json
+import math
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable, Mapping
 
 import numpy as np
 import pandas as pd
-from pydantic import field_validator
+from pydantic import field_validator, model_validator
 
-from ..core.errors import ScenarioError
-from ..core.rng import spawn_seeds
+from ..core import arguments
+from ..core.errors import ConfigError, Described, ScenarioError, short_repr
+from ..core.rng import MAX_SEED, spawn_seeds
 from ..core.trace import to_plain
 from ..core.config import SpecModel, read_mapping, set_path, validate_model
 from ..scenarios import catalogue, load_scenario, simulate
@@ -53,6 +55,9 @@ from .store import ERROR_COLUMN, ResultStore
 from .tasks import run_tasks
 
 RESERVED_COLUMNS = ("run_id", "seed", ERROR_COLUMN)
+MAX_RUNS = 1_000_000
+"""The most runs (grid points × seeds) one sweep may hold: every run is planned, and
+every grid point validated, before anything runs."""
 
 
 class SweepSpec(SpecModel):
@@ -101,18 +106,23 @@ class SweepSpec(SpecModel):
                 raise ScenarioError(key, f"a scenario field path (not one of the reserved columns {list(RESERVED_COLUMNS)})", key)
             if not isinstance(values, list) or not values:
                 raise ScenarioError(key, "a non-empty list of values", values)
+            repeated = next((v for i, v in enumerate(values) if v in values[:i]), None) if len(values) > 1 else None
+            if repeated is not None:
+                raise ScenarioError(key, "distinct values (each grid point once)", repeated)
         return dict(value)
 
     @field_validator("seeds", mode="before")
     @classmethod
     def _seeds(cls, value):
         if is_int(value):
-            if value <= 0:
-                raise ScenarioError("", "a positive number of seeds or a non-empty list of seeds", value)
+            if not 0 < value <= MAX_RUNS:
+                raise ScenarioError("", f"a number of seeds in [1, {MAX_RUNS:,}] or a non-empty list of seeds", value)
             return int(value)
         if isinstance(value, list) and value:
-            if not all(is_int(s) and s >= 0 for s in value):
-                raise ScenarioError("", "a list of non-negative integer seeds", value)
+            if len(value) > MAX_RUNS:
+                raise ScenarioError("", f"at most {MAX_RUNS:,} seeds", f"{len(value):,} seeds")
+            if not all(is_int(s) and 0 <= s <= MAX_SEED for s in value):
+                raise ScenarioError("", "a list of integer seeds in [0, 2**63)", value)
             if len(set(value)) != len(value):
                 raise ScenarioError("", "distinct seeds", value)
             return [int(s) for s in value]
@@ -121,9 +131,17 @@ class SweepSpec(SpecModel):
     @field_validator("root_seed", mode="before")
     @classmethod
     def _root_seed(cls, value):
-        if not is_int(value) or value < 0:
-            raise ScenarioError("", "a non-negative integer", value)
+        if not is_int(value) or not 0 <= value <= MAX_SEED:
+            raise ScenarioError("", "an integer in [0, 2**63)", value)
         return int(value)
+
+    @model_validator(mode="after")
+    def _size(self):
+        points = math.prod(len(values) for values in self.grid.values())
+        runs = points * (self.seeds if isinstance(self.seeds, int) else len(self.seeds))
+        if runs > MAX_RUNS:
+            raise ScenarioError("grid", f"at most {MAX_RUNS:,} runs (grid points × seeds)", Described(f"{points:,} grid points × seeds = {runs:,} runs"))
+        return self
 
     @field_validator("metrics", mode="before")
     @classmethod
@@ -215,6 +233,9 @@ def plan_sweep(sweep_file_or_mapping: str | Path | Mapping[str, Any], out: str |
         value list, a non-positive seed count, or a grid combination whose scenario is
         invalid (with the scenario's own field, expectation and value).
     """
+    if not isinstance(sweep_file_or_mapping, (str, Path, Mapping)) or (isinstance(sweep_file_or_mapping, str) and not sweep_file_or_mapping.strip()):
+        raise ConfigError(f"sweep: expected a sweep file path, a shipped sweep name or a mapping, received {short_repr(sweep_file_or_mapping)}")
+    arguments.path(out, "out", optional=True)
     ref = catalogue.resolve(sweep_file_or_mapping, "sweeps") if isinstance(sweep_file_or_mapping, (str, Path)) else sweep_file_or_mapping
     data, source = read_mapping(ref)
     spec: SweepSpec = validate_model(SweepSpec, data, source)
@@ -224,6 +245,7 @@ def plan_sweep(sweep_file_or_mapping: str | Path | Mapping[str, Any], out: str |
         check_combination(scenario_ref, dict(zip(grid_keys, values)), source, spec.overrides)
         for values in itertools.product(*spec.grid.values())
     )
+    check_distinct_points(combinations, source)
     scenario = read_mapping(scenario_ref)[0]
     for key, value in spec.overrides.items():
         set_path(scenario, key, value)
@@ -270,6 +292,17 @@ def check_combination(scenario_ref: str | dict, combination: dict, source: str |
     return {key: get_path(dumped, key.split("+")[0], value) for key, value in combination.items()}
 
 
+def check_distinct_points(combinations: tuple[dict, ...], source: str | None) -> None:
+    """Refuse two grid points that are the same once validated (``1e-3`` and ``0.001``):
+    they would be one run id."""
+    seen: dict[str, dict] = {}
+    for combination in combinations:
+        key = json.dumps(to_plain(combination), sort_keys=True, default=str)
+        if key in seen:
+            raise ScenarioError("grid", "distinct grid points once validated", combination, source=source)
+        seen[key] = combination
+
+
 def get_path(mapping: Mapping, dotted: str, default: Any) -> Any:
     """``mapping["a"]["b"]`` for ``dotted == "a.b"`` (numeric parts index lists), or
     ``default`` if absent."""
@@ -313,6 +346,8 @@ def run_sweep(
         paths) and ``other_rows`` (rows in the store from other sweeps).
     """
     as_executor(executor)
+    workers = arguments.count(workers, "workers", minimum=1, optional=True)
+    progress = arguments.flag(progress, "progress")
     plan = plan_sweep(sweep_file_or_mapping, out)
     every = run_tasks(plan.fn, plan.tasks, ResultStore(plan.out), executor=executor, scheduler=scheduler, workers=workers, progress=progress)
     order = {task["run_id"]: index for index, task in enumerate(plan.tasks)}
@@ -328,7 +363,11 @@ def summarize_sweep(frame: pd.DataFrame, grid_keys: list[str] | tuple[str, ...] 
     Adds ``runs`` (tasks per combination) and ``failed`` (tasks that raised); means are
     over the rows without error. ``grid_keys`` defaults to ``frame.attrs["grid"]``.
     """
-    keys = list(frame.attrs.get("grid", []) if grid_keys is None else grid_keys)
+    arguments.instance(frame, pd.DataFrame, "frame", "a pandas DataFrame of sweep rows (run_sweep returns one)")
+    keys = list(frame.attrs.get("grid", []) if grid_keys is None else arguments.sequence(grid_keys, "grid_keys", "column names"))
+    missing = [key for key in keys if key not in frame.columns]
+    if missing:
+        raise ConfigError(f"grid_keys: expected columns of the frame, received {missing}")
     ok = frame[frame[ERROR_COLUMN].isna()] if ERROR_COLUMN in frame else frame
     skip = set(keys) | set(RESERVED_COLUMNS)
     values = [c for c in ok.columns if c not in skip and (pd.api.types.is_numeric_dtype(ok[c]) or pd.api.types.is_bool_dtype(ok[c]))]

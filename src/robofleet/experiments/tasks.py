@@ -7,7 +7,8 @@ from typing import Iterable, Mapping
 
 import pandas as pd
 
-from ..core.errors import ConfigError, Interrupted
+from ..core import arguments
+from ..core.errors import ConfigError, Interrupted, short_repr
 from ..core.progress import tracked
 from .executors import Executor, TaskFn, as_executor, execute
 from .store import ResultStore, check_tasks
@@ -67,10 +68,17 @@ def run_tasks(
         On Ctrl-C (a ``KeyboardInterrupt``): finished runs are kept, and the message says
         how many are stored and that the same call resumes.
     """
-    checked = check_tasks(tasks)
+    arguments.function(fn, "fn")
+    checked = check_tasks(arguments.sequence(tasks, "tasks", "task dicts"))
     kind = as_executor(executor)
-    store = store if isinstance(store, ResultStore) else ResultStore(store)
-    blocking = next((p for p in (store.directory, *store.directory.parents) if p.exists() and not p.is_dir()), None)
+    workers = arguments.count(workers, "workers", minimum=1, optional=True)
+    progress = arguments.flag(progress, "progress")
+    store = store if isinstance(store, ResultStore) else ResultStore(arguments.path(store, "store"))
+    try:
+        blocking = next((p for p in (store.directory, *store.directory.parents) if p.exists() and not p.is_dir()), None)
+    except (OSError, ValueError) as exc:  # a name too long, a NUL byte
+        raise ConfigError(f"store: expected a usable directory path, received {short_repr(str(store.directory))} "
+                          f"({getattr(exc, 'strerror', None) or exc})") from None
     if blocking is not None:
         raise ConfigError(f"store: expected a directory, received {store.directory} ({blocking} is a file)")
     with store.writer_lock():

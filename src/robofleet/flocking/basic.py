@@ -21,7 +21,13 @@ Line numbers below refer to the listing of Algorithm 1 in the paper.
   for robots the observer's local coordinates (x, then y) — only reached on exact ties,
   which have probability zero for generic positions.
 * Lines 15-38: the case analysis (ranks, the set H of line 21, the ``|S_1| ≤ |S_2|``
-  rule of line 35). Where an index expression of the listing leaves ``1..|F_j|`` (this
+  rule of line 35). With ``ranking = "axis_slot_nearest"`` (beyond the paper, opt-in;
+  :meth:`BasicAlgorithm.ranked`) the followers of a semi-space beyond ``|F_s|`` — the
+  ones lines 18-28 send to the on-axis slot or across — are, while the on-axis slot is
+  free, the ones nearest to that slot instead of the ones nearest to L, and H is sorted
+  by the distance to it. The paper's ranking cannot form a pattern whose on-axis slot is
+  not the nearest to L (:meth:`.patterns.Pattern.axis_slot_ranked_ahead`); the variant
+  forms them. Where an index expression of the listing leaves ``1..|F_j|`` (this
   happens only when ``|S_0| > |F_0|``, e.g. line 36 with ``|S_1| = 0``), it is clamped
   into range; an empty F_j falls back to F_0 then to the other side. Both are our
   documented completions of the listing.
@@ -33,7 +39,7 @@ pattern. Per call the cost is O(m log m) for m followers (sorting), all vectoriz
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any, ClassVar
+from typing import Any, ClassVar, Literal
 
 import numpy as np
 
@@ -91,9 +97,13 @@ class BasicAlgorithm:
     axis_tolerance:
         Distance (in the common unit) within which a robot counts as lying on Y (S_0)
         and within which L = B counts as the tie of footnote 3.
+    ranking:
+        ``"paper"`` (lines 12-13 as listed) or ``"axis_slot_nearest"`` (deviation, see
+        :meth:`ranked`).
     """
 
     axis_tolerance: float = 0.5
+    ranking: Literal["paper", "axis_slot_nearest"] = "paper"
 
     name: ClassVar[str] = "basic"
     frames: ClassVar[FrameAgreement] = "none"
@@ -179,7 +189,7 @@ class BasicAlgorithm:
     def _case_side(self, view: View, s: int, rng) -> int:
         """Lines 16-28 for me ∈ S_s (s = 1; s = 2 is the symmetric case of line 30)."""
         o = 3 - s
-        k = view.my_rank
+        k = int(np.flatnonzero(self.ranked(view, s) == 0)[0]) + 1
         n_fs, n_fo, n_f0 = len(view.slots[s]), len(view.slots[o]), len(view.slots[0])
         n_s0 = len(view.order[0])
         if k <= n_fs:                                                                  # line 18
@@ -203,11 +213,42 @@ class BasicAlgorithm:
         return 1 if len(view.order[1]) <= len(view.order[2]) else 2
 
     def h_set(self, view: View) -> np.ndarray:
-        """Line 21-23: robots of S_1 ranked beyond ``|F_1|`` and of S_2 beyond ``|F_2|``, sorted."""
-        extra = [view.order[j][len(view.slots[j]):] for j in (1, 2)]
+        """Line 21-23: robots of S_1 ranked beyond ``|F_1|`` and of S_2 beyond ``|F_2|``,
+        sorted by line 13 (``axis_slot_nearest``: nearest to the on-axis slot first)."""
+        extra = [self.ranked(view, j)[len(view.slots[j]):] for j in (1, 2)]
         members = np.concatenate(extra)
+        slot = self.open_axis_slot(view)
+        if slot is not None:
+            return members[np.argsort(np.linalg.norm(view.followers[members] - slot, axis=1), kind="stable")]
         keys = tuple(k[members] for k in view.robot_keys)
         return members[sort_descending(keys)]
+
+    def open_axis_slot(self, view: View) -> np.ndarray | None:
+        """The first F_0 slot (local frame) while F_0 has more slots than S_0 robots, with
+        ``ranking = "axis_slot_nearest"``; ``None`` otherwise (the paper's ranking applies)."""
+        if self.ranking == "paper" or len(view.slots[0]) <= len(view.order[0]):
+            return None
+        return view.slot_points[view.slots[0][0]]
+
+    def ranked(self, view: View, j: int) -> np.ndarray:
+        """S_j in the order its ranks k are counted in (lines 17-28).
+
+        The paper's order (line 13: decreasing distance from L, then from B); with
+        ``ranking = "axis_slot_nearest"`` and a free on-axis slot, the ``|S_j| − |F_j|``
+        followers nearest to that slot move to the end, nearest first, so that they, not
+        the followers nearest to L, are the ones beyond ``|F_j|`` (deviation from the
+        paper: near the formation the follower at the on-axis slot keeps it, whatever its
+        distance from L). The rest keep the paper's order. Distances to a point of Y
+        are the same in every local frame: no common chirality is needed.
+        """
+        order = view.order[j]
+        excess = len(order) - len(view.slots[j])
+        slot = self.open_axis_slot(view)
+        if slot is None or excess <= 0:
+            return order
+        nearest = np.argsort(np.linalg.norm(view.followers[order] - slot, axis=1), kind="stable")[:excess]
+        rest = np.setdiff1d(np.arange(len(order)), nearest)
+        return np.concatenate([order[rest], order[nearest]])
 
     def rank_in_h(self, view: View, rng: np.random.Generator | None) -> int:
         """Line 24: k' = Rank(me, H) (1-based)."""

@@ -7,7 +7,11 @@
   and Compute take no time), and Observation 3.1 (a common unit of length);
 * the pattern conditions of Sec. 4.1: lb-symmetry (item 2), at most one point on the
   L-B axis (item 3), the pattern directed along B → L (item 1, for the directed
-  problem), and whether the chosen algorithm can form the pattern (Secs. 4.1, 6.1-6.4);
+  problem), whether the ranking of lines 12-28 can hold a follower on the on-axis slot
+  (not stated by the paper: the slot must be nearer to L than every off-axis slot,
+  :meth:`.patterns.Pattern.axis_slot_ranked_ahead`, unless ``algorithm.ranking:
+  axis_slot_nearest``), and whether the chosen algorithm can form the pattern (Secs.
+  4.1, 6.1-6.4);
 * conditions (1)-(3) of Sec. 3.2 a priori: the leader's speed and turn rate against the
   slowest follower the spec allows, Σ_i k^{f_i} with the longest Move the scheduler
   allows against ξ; condition (4), which (3) implies. Each run also measures (1)-(4) on
@@ -21,11 +25,18 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..core.family import Guarantee
+from ..core.family import Guarantee, expect_spec
 from ..core.rng import keyed_generator
 from .leader import ConditionReport, check_conditions, resolve_speeds
 from .patterns import Pattern
-from .spec import ANY_PATTERN, AUTO_XI_FACTOR, HEADING_BASED, Spec, pattern_limitation
+from .spec import (
+    ANY_PATTERN,
+    AUTO_XI_FACTOR,
+    HEADING_BASED,
+    Spec,
+    pattern_limitation,
+    ranking_limitation,
+)
 
 
 def formable_consequence(kind: str) -> str:
@@ -49,8 +60,10 @@ def check(spec: Spec) -> list[Guarantee]:
     -------
     list of Guarantee
         A1, A2, A3, Observation 3.1; lb-symmetry, points on the axis, directed pattern,
-        the algorithm's pattern requirement; conditions (1), (2), (3), (4) of Sec. 3.2.
+        the on-axis slot's ranking, the algorithm's pattern requirement; conditions (1),
+        (2), (3), (4) of Sec. 3.2.
     """
+    expect_spec(spec, Spec, "flocking")  # input validation: a validated flocking scenario
     pattern = spec.pattern.build(rng=keyed_generator(0, "pattern"), source=spec.source)
     return model_guarantees(spec) + pattern_guarantees(spec, pattern) + leader_guarantees(spec, pattern)
 
@@ -78,6 +91,9 @@ def pattern_guarantees(spec: Spec, pattern: Pattern) -> list[Guarantee]:
     drawn = " (random pattern: lb-symmetric by construction; checked on the seed-0 draw)" if spec.pattern.kind == "random" else ""
     kind = spec.algorithm.kind
     limitation = pattern_limitation(kind, pattern)
+    ranking = ranking_limitation(spec.algorithm, pattern)
+    needs = f"it needs {limitation}" if limitation else (
+        "its ranking cannot hold the on-axis slot (see above); algorithm.ranking: axis_slot_nearest forms it (beyond the paper)")
     on_axis = f"{pattern.n_on_axis} point{'' if pattern.n_on_axis == 1 else 's'} on the axis"
     return [
         Guarantee("lb-symmetric pattern", "Sec. 4.1, item 2", pattern.is_lb_symmetric,
@@ -90,9 +106,29 @@ def pattern_guarantees(spec: Spec, pattern: Pattern) -> list[Guarantee]:
                   "B_P is off the pattern's negative x axis: the estimated heading B → L differs from the leader's, "
                   "so Δ_e ≤ ξ does not give Δ_r ≤ ξ",
                   "the estimated target is the real one when the leader goes straight (directed flocking)"),
-        Guarantee(f"algorithm {kind!r} can form the pattern", "Secs. 4.1, 6.1-6.4", not limitation,
-                  f"it needs {limitation}", formable_consequence(kind)),
+        axis_slot_guarantee(spec, pattern, ranking, drawn),
+        Guarantee(f"algorithm {kind!r} can form the pattern", "Secs. 4.1, 6.1-6.4", not limitation and not ranking,
+                  needs, formable_consequence(kind)),
     ]
+
+
+def axis_slot_guarantee(spec: Spec, pattern: Pattern, limitation: str, drawn: str = "") -> Guarantee:
+    """Whether the ranking of Algorithm 1 (lines 12-28) can hold a follower on the
+    pattern's on-axis slot (:func:`.spec.ranking_limitation`); ``drawn`` notes a pattern
+    drawn per seed (checked on one draw)."""
+    drawn = " (random pattern: checked on the seed-0 draw, other draws may differ)" if drawn else ""
+    if pattern.n_on_axis != 1:
+        holds_because = f"{pattern.n_on_axis} on-axis slots: nothing to rank against"
+    elif spec.algorithm.ranking != "paper":
+        holds_because = ("ranking axis_slot_nearest (beyond the paper): the followers sent to the on-axis slot are the "
+                         "ones nearest to it")
+    elif spec.algorithm.kind == "stripe":
+        holds_because = "the stripe ranking (distance from Y first) puts the on-axis slot behind every other"
+    else:
+        holds_because = "it is nearer to the leader than every off-axis slot, so the follower heading for it ranks last"
+    return Guarantee("ranking can hold the on-axis slot", "Algorithm 1, lines 12-28", not limitation,
+                     f"{limitation} (set algorithm.ranking: axis_slot_nearest, beyond the paper){drawn}",
+                     holds_because + drawn)
 
 
 def leader_guarantees(spec: Spec, pattern: Pattern) -> list[Guarantee]:

@@ -27,7 +27,7 @@ from typing import Literal, Union
 import numpy as np
 from pydantic import Field, field_validator
 
-from ..core.errors import ScenarioError
+from ..core.errors import ConfigError, ScenarioError, short_repr
 from ..core.rng import RngLike, as_generator
 from ..core.config import SpecModel
 
@@ -223,8 +223,7 @@ def check_conditions(v_leader: float, omega_leader: float, radius: float, speeds
     ``on_violation="warn"`` issues a :class:`FlockingConditionWarning`, ``"error"`` raises
     :class:`ScenarioError` (field ``leader``), ``"ignore"`` only reports.
     """
-    speeds = np.asarray(speeds, float)
-    tau = np.broadcast_to(np.asarray(tau_move_max, float), speeds.shape)
+    speeds, tau = checked_condition_inputs(v_leader, omega_leader, radius, speeds, tau_move_max, xi, on_violation)
     slot_speed = v_leader + omega_leader * radius
     report = ConditionReport(float(v_leader), float(omega_leader), float(radius), float(speeds.min()),
                              float(np.sum(slot_speed * tau)), float(xi), float(cond4))
@@ -235,6 +234,24 @@ def check_conditions(v_leader: float, omega_leader: float, radius: float, speeds
         where = f"{source}: " if source else ""
         warnings.warn(f"{where}leader violates Sec. 3.2 condition(s): " + "; ".join(bad), FlockingConditionWarning, stacklevel=3)
     return report
+
+
+def checked_condition_inputs(v_leader, omega_leader, radius, speeds, tau_move_max, xi, on_violation) -> tuple[np.ndarray, np.ndarray]:
+    """Input validation of :func:`check_conditions`: finite numbers (ξ > 0), at least one
+    follower speed, move times that broadcast to the speeds; one-line :class:`ConfigError` s."""
+    for name, value in (("v_leader", v_leader), ("omega_leader", omega_leader), ("radius", radius), ("xi", xi)):
+        if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer, np.floating)) or not np.isfinite(value):
+            raise ConfigError(f"{name}: expected a finite number, received {short_repr(value)}")
+    try:
+        speeds = np.asarray(speeds, float)
+        tau = np.broadcast_to(np.asarray(tau_move_max, float), speeds.shape)
+    except (TypeError, ValueError):
+        raise ConfigError(f"speeds, tau_move_max: expected numbers of broadcastable shapes, received {short_repr(speeds)}, {short_repr(tau_move_max)}") from None
+    if speeds.ndim != 1 or len(speeds) == 0 or not np.all(np.isfinite(speeds)) or not np.all(np.isfinite(tau)):
+        raise ConfigError(f"speeds: expected one finite speed per follower (at least one), received {short_repr(speeds.tolist())}")
+    if on_violation not in ("warn", "error", "ignore"):
+        raise ConfigError(f"on_violation: expected 'warn', 'error' or 'ignore', received {short_repr(on_violation)}")
+    return speeds, tau
 
 
 def condition4_max(starts: np.ndarray, ends: np.ndarray, slot_speed: float) -> float:

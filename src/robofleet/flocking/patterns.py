@@ -31,11 +31,13 @@ from typing import Literal
 import numpy as np
 import yaml
 
+from ..core.budget import check_allocation
 from ..core.errors import ScenarioError
 from ..core.rng import RngLike, as_generator
 
 #: Relative tolerance for geometric equalities on pattern points (scaled by max(1, R_P)).
 PATTERN_TOLERANCE = 1e-9
+PAIR_BYTES = 24  # the pairwise gaps validate_points computes, per pair of points (memory budget)
 
 PatternKind = Literal["wedge", "line", "spread", "random", "points", "file"]
 
@@ -116,6 +118,26 @@ class Pattern:
         """True when B_P lies on the negative x axis, so estimated and real heading agree."""
         return bool(np.allclose(self.axis, [1.0, 0.0], atol=1e-9))
 
+    def axis_slot_ranked_ahead(self) -> np.ndarray:
+        """Off-axis points that Algorithm 1's ranking does not place ahead of the single
+        on-axis point (empty when there is no axis point, or it ranks behind them all).
+
+        Lines 12-13 sort slots and followers by decreasing distance from L, and lines
+        18-25 send a follower of S_s to the on-axis slot only when it ranks beyond
+        ``|F_s|`` — behind every follower holding a slot of its side. A follower that
+        approaches the on-axis slot stays in S_s until it is within the axis tolerance,
+        ranked by its own distance from L, about that of the slot: if the slot is not
+        strictly nearer to L than every off-axis slot, the follower is ranked among the
+        side slots and sent to one of them, another follower is sent to the axis slot,
+        and the two swap for ever (e.g. a diamond whose axis point is the farthest).
+        Distances within :attr:`scale_tolerance` count as a tie (an ambiguous ranking).
+        """
+        if self.n_on_axis != 1:
+            return np.empty(0, dtype=np.intp)
+        distance = np.linalg.norm(self.points, axis=1)
+        axis_distance = float(distance[self.side == 0][0])
+        return np.flatnonzero((self.side != 0) & (distance <= axis_distance + self.scale_tolerance))
+
     def supported_by_basic(self) -> tuple[bool, str]:
         """Whether Algorithm 1 (and its Sec. 5 variants) can form this pattern.
 
@@ -145,6 +167,7 @@ def validate_points(points: np.ndarray | Sequence[Sequence[float]], *, name: str
         raise ScenarioError(field, "a non-empty list of [x, y] points", f"shape {arr.shape}", source=source)
     if not np.all(np.isfinite(arr)):
         raise ScenarioError(field, "finite coordinates", points, source=source)
+    check_allocation(PAIR_BYTES * len(arr) ** 2, f"pattern of {len(arr)} points", field, source)  # input validation
     tol = PATTERN_TOLERANCE * max(1.0, float(np.abs(arr).max()))
     gap = np.linalg.norm(arr[:, None] - arr[None], axis=-1)
     np.fill_diagonal(gap, np.inf)
@@ -186,9 +209,12 @@ def random_lb_symmetric(n_points: int | None = None, rng: RngLike = None, low: S
     ``(x, ±y)`` with ``y > 0``, plus one point ``(x, 0)`` on the axis when ``n`` is odd.
     """
     gen = as_generator(rng)
+    if n_points is not None and (isinstance(n_points, (bool, np.bool_)) or not isinstance(n_points, (int, np.integer))):
+        raise ScenarioError("pattern.n_points", "an integer >= 1", n_points)
     n = int(gen.integers(2, 9)) if n_points is None else int(n_points)
     if n < 1:
         raise ScenarioError("pattern.n_points", "an integer >= 1", n_points)
+    check_allocation(PAIR_BYTES * n**2, f"pattern of {n} points", "pattern.n_points")  # input validation
     pairs = n // 2
     x = gen.uniform(low[0], high[0], size=pairs + n % 2)
     y = gen.uniform(0.0, high[1], size=pairs)

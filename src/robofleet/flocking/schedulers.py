@@ -39,6 +39,7 @@ import numpy as np
 from pydantic import Field, model_validator
 
 from ..core.errors import ConfigError, ScenarioError
+from ..core.budget import check_allocation
 from ..core.recorder import Recorder
 from ..core.config import SpecModel
 from .leader import LeaderCourse
@@ -172,6 +173,8 @@ def _look_batches(spec: SchedulerSpec, m: int, duration: float, rng: np.random.G
 
 def _check_inputs(pattern: Pattern, frames: LocalFrames, starts, speeds) -> tuple[np.ndarray, np.ndarray]:
     """Shapes and values checked once at the public boundary of :func:`run`."""
+    if not isinstance(pattern, Pattern) or not isinstance(frames, LocalFrames):
+        raise ConfigError(f"pattern, frames: expected a Pattern and LocalFrames, received {type(pattern).__name__}, {type(frames).__name__}")
     starts = np.asarray(starts, dtype=float)
     speeds = np.asarray(speeds, dtype=float)
     m = pattern.size
@@ -186,6 +189,10 @@ def _check_inputs(pattern: Pattern, frames: LocalFrames, starts, speeds) -> tupl
 
 def sample_times(duration: float, sample_dt: float) -> np.ndarray:
     """The sampling instants ``0, sample_dt, 2 sample_dt, … ≤ duration`` (at least two)."""
+    for name, value in (("duration", duration), ("sample_dt", sample_dt)):  # input validation
+        if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer, np.floating)) or not 0 < value < np.inf:
+            raise ConfigError(f"{name}: expected a finite number > 0, received {value!r}")
+    check_allocation(8 * (duration / sample_dt + 2), "number of samples (duration / sample_dt)", "duration")
     times = np.arange(0.0, duration + 1e-9, sample_dt)
     if len(times) < 2:
         raise ConfigError(f"duration: expected at least one sampling interval (≥ sample_dt = {sample_dt:g}), received {duration!r}")
@@ -319,6 +326,8 @@ def run(algorithm: Algorithm, pattern: Pattern, frames: LocalFrames, starts: np.
         independent seeded streams (activation and move lengths / the algorithm's own
         random choices).
     """
+    if not isinstance(course, LeaderCourse) or not isinstance(spec, SchedulerSpec):  # input validation
+        raise ConfigError(f"course, spec: expected a LeaderCourse and a SchedulerSpec, received {type(course).__name__}, {type(spec).__name__}")
     engine = LookComputeMove(algorithm, pattern, frames, starts, speeds, course, spec, duration=duration,
                              scheduler_rng=scheduler_rng, algorithm_rng=algorithm_rng)
     times = sample_times(duration, sample_dt)

@@ -27,6 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..core.family import expect_spec
 from ..core.recorder import Recorder
 from ..core.rng import keyed_generator, resolve_seed
 from ..core.trace import Trace
@@ -141,6 +142,7 @@ def simulate(spec: Spec, seed: int | None = None, progress: bool = False) -> Tra
     progress:
         Show a progress bar over the sampling steps.
     """
+    expect_spec(spec, Spec, "flocking")  # input validation: a validated flocking scenario
     seed = resolve_seed(seed)
     world = build_world(spec, seed)
     engine, times = world.engine, world.times

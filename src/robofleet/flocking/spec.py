@@ -29,8 +29,9 @@ import warnings
 from typing import Literal, Union
 
 import numpy as np
-from pydantic import Field, field_validator, model_validator
+from pydantic import Field, ValidationInfo, field_validator, model_validator
 
+from ..core.budget import RunSize
 from ..core.config import SpecModel
 from ..core.errors import ScenarioError
 from ..core.rng import RngLike
@@ -55,6 +56,15 @@ ANY_PATTERN = {"randomized", "chirality", "shared_axes"}
 HEADING_BASED = {"observable_heading", "memory"}
 #: ``xi: auto`` is this factor times Σ_i k^{f_i}, the bound of condition (3) of Sec. 3.2.
 AUTO_XI_FACTOR = 2.0
+#: Slots of the built-in patterns (Fig. 8).
+BUILTIN_SIZES = {"wedge": 6, "line": 4, "spread": 10}
+#: Memory of one logged Look-Compute-Move cycle (its event and its log row), for the budget.
+CYCLE_BYTES = 1500
+#: Algorithms whose ranking keeps the paper's form (``algorithm.ranking: paper`` only).
+PAPER_RANKING_ONLY = {"stripe", "hula_hoop"}
+#: Algorithms whose slots are ranked by the distance from L first (lines 12-13): they
+#: cannot keep a follower on an on-axis slot that is not the nearest to L.
+LEADER_DISTANCE_RANKED = set(ALGORITHMS) - {"stripe"}
 
 
 class PatternSpec(SpecModel):
@@ -131,17 +141,33 @@ class FollowersSpec(SpecModel):
 
 
 class AlgorithmSpec(SpecModel):
-    """The algorithm and its tolerances."""
+    """The algorithm, its tolerances and its ranking.
+
+    ``ranking: axis_slot_nearest`` (beyond the paper, opt-in; default ``paper``): the
+    followers of a crowded semi-space sent to the free on-axis slot are the ones nearest
+    to it, not the ones nearest to the leader (:meth:`.basic.BasicAlgorithm.ranked`), so
+    that patterns whose on-axis slot is not the nearest to the leader can be formed. Not
+    with ``stripe`` (its ranking puts the axis slot last already) nor ``hula_hoop`` (its
+    stable spaces follow the paper's ranking).
+    """
 
     kind: AlgorithmKind = "basic"
     axis_tolerance: float = Field(default=0.5, gt=0)
     margin: float = Field(default=1e-3, ge=0)
     random_move: float = Field(default=1.0, gt=0)
+    ranking: Literal["paper", "axis_slot_nearest"] = "paper"
+
+    @model_validator(mode="after")
+    def _ranking(self):
+        if self.ranking != "paper" and self.kind in PAPER_RANKING_ONLY:
+            raise ScenarioError("ranking", f"'paper' with algorithm {self.kind!r} (only the paper's ranking is defined for it)",
+                                self.ranking)
+        return self
 
     def build(self) -> BasicAlgorithm:
         """The algorithm object (frozen dataclass) with this spec's parameters."""
         cls = ALGORITHMS[self.kind]
-        kwargs = {"axis_tolerance": self.axis_tolerance}
+        kwargs = {"axis_tolerance": self.axis_tolerance, "ranking": self.ranking}
         if self.kind in ("stripe", "hula_hoop"):
             kwargs["margin"] = self.margin
         if self.kind == "randomized":
@@ -188,6 +214,46 @@ class Spec(SpecModel):
             check_pattern(self, pattern)
         return self
 
+    # -- input validation: the pattern file, the memory budget (robofleet.core.budget) ----
+    @model_validator(mode="after")
+    def _pattern_file(self, info: ValidationInfo):
+        """Read a pattern file now (beside the scenario file the validation context names),
+        so that ``validate`` refuses what the run would; without a context it is read at the run."""
+        context = info.context if isinstance(info.context, dict) else {}
+        if self.pattern.kind == "file" and "source" in context:
+            try:
+                pattern = self.pattern.build(source=context["source"])
+            except ScenarioError as exc:
+                inner = ": ".join(p for p in (str(exc.source), exc.field) if p) if exc.source and exc.source != context["source"] else exc.field
+                raise ScenarioError(f"pattern.path: {inner}" if not inner.startswith("pattern.path") else inner, exc.expected, exc.received) from None
+            check_followers(self, pattern)
+            check_pattern(self, pattern)
+        return self
+
+    def run_size(self) -> RunSize:
+        """What a run holds: per sample and robot a position and an estimated-target slot,
+        per sample five scalars, and one logged cycle (an event) per Look-Compute-Move cycle
+        (ASYNC: at most one per ``cycle_min`` per follower; FSYNC/SSYNC: one per time unit)."""
+        m = self.expected_followers()
+        steps = int(self.duration / self.sample_dt + 1e-9)
+        period = self.scheduler.cycle_min if self.scheduler.kind == "async" else 1.0
+        cycles = m * (int(self.duration / period) + 1)
+        return RunSize(steps, 1 + m, 32, "duration / sample_dt", "followers.count", 40 * (steps + 1) + CYCLE_BYTES * cycles, "cycle log",
+                       "duration, scheduler.cycle_min")
+
+    def expected_followers(self) -> int:
+        """The follower count as the fields give it: ``count``, else one per listed speed or
+        start, else the pattern's slots (a random pattern: at most 8; a file: read later, 1)."""
+        f, pattern = self.followers, self.pattern
+        given = f.count or len(f.speeds or f.starts or [])
+        if given:
+            return given
+        if pattern.kind == "points":
+            return len(pattern.points)
+        if pattern.kind == "random":
+            return pattern.n_points or 8
+        return BUILTIN_SIZES.get(pattern.kind, 1)
+
 
 def check_followers(spec: Spec, pattern: Pattern, source: str | None = None) -> int:
     """Number of followers; exactly one per slot (Sec. 4: ``|ℙ| − 1`` followers)."""
@@ -212,6 +278,20 @@ def pattern_limitation(kind: str, pattern: Pattern) -> str:
     if kind not in ANY_PATTERN:
         return pattern.supported_by_basic()[1]
     return ""
+
+
+def ranking_limitation(algorithm: AlgorithmSpec, pattern: Pattern) -> str:
+    """Why the paper's ranking cannot keep a follower on the pattern's on-axis slot
+    (:meth:`.patterns.Pattern.axis_slot_ranked_ahead`), or ``""``: not with the stripe
+    ranking (distance from Y first) nor with ``ranking: axis_slot_nearest``."""
+    ahead = pattern.axis_slot_ranked_ahead()
+    if not len(ahead) or algorithm.kind not in LEADER_DISTANCE_RANKED or algorithm.ranking != "paper":
+        return ""
+    axis = pattern.points[pattern.side == 0][0]
+    others = pattern.size - pattern.n_on_axis
+    return (f"the on-axis slot {np.round(axis, 3).tolist()} ({np.linalg.norm(axis):.4g} from the leader) is not nearer to the "
+            f"leader than {len(ahead)} of the {others} off-axis slots: a follower approaching it is ranked among the side "
+            "slots and sent back while another takes its place, so followers swap slots for ever")
 
 
 def check_pattern(spec: Spec, pattern: Pattern, source: str | None = None) -> None:

@@ -18,7 +18,7 @@ from pathlib import Path
 
 import yaml
 
-from ..core.errors import ConfigError, ScenarioError
+from ..core.errors import ConfigError, ScenarioError, short_repr
 
 SUFFIX = ".yaml"
 ALIASES = {  # names of the files' earlier home, kept working
@@ -83,12 +83,13 @@ def path(name: str, kind: str = "scenarios") -> Path:
     key = str(name).removesuffix(SUFFIX).strip("/").removeprefix(f"{kind}/")
     key = ALIASES.get(key, key)
     candidate = folder(kind) / f"{key}{SUFFIX}"
-    if key and candidate.is_file():
+    if key and is_file(candidate):
         return candidate
     known = names(kind)
     close = [n for n in known if key.split("/")[-1] in n] or known
     hint = ", ".join(close[:6]) + (", ..." if len(close) > 6 else "")
-    raise ScenarioError("", f"a file or a shipped {kind[:-1]} name ({hint}; `robofleet {kind}` lists them all)", str(name))
+    raise ScenarioError("", f"a file or a shipped {kind[:-1]} name ({hint}; `robofleet {kind}` lists them all)", str(name),
+                        source=short_repr(str(name), 60).strip("'"))
 
 
 def resolve(ref: str | Path, kind: str = "scenarios", base: Path | None = None) -> Path:
@@ -96,9 +97,9 @@ def resolve(ref: str | Path, kind: str = "scenarios", base: Path | None = None) 
     shipped file of that name."""
     given = Path(ref)
     for candidate in ((base / given,) if base is not None and not given.is_absolute() else ()) + (given,):
-        if candidate.is_file():
+        if is_file(candidate):
             return candidate
-    if given.exists():
+    if is_file(given, exists=True):
         raise ScenarioError("", f"a {kind[:-1]} file", f"{given} is a directory", source=str(given))
     try:
         return path(str(ref), kind)
@@ -106,6 +107,15 @@ def resolve(ref: str | Path, kind: str = "scenarios", base: Path | None = None) 
         if given.suffix in (".yaml", ".yml") or given.is_absolute():
             return given  # meant as a file: reading it reports it missing or unreadable
         raise
+
+
+def is_file(path: Path, exists: bool = False) -> bool:
+    """``path.is_file()`` (``path.exists()`` with ``exists``), ``False`` for a name the
+    system cannot even look up (too long, a NUL byte)."""
+    try:
+        return path.exists() if exists else path.is_file()
+    except (OSError, ValueError):
+        return False
 
 
 def describe(file: Path, root: Path, kind: str) -> Entry:

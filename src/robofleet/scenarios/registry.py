@@ -10,10 +10,13 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any, Mapping
 
+import numpy as np
+
 from ..avoidance.family import FAMILY as AVOIDANCE
 from ..coordination.family import FAMILY as COORDINATION
+from ..core.budget import check_run_size
 from ..core.config import SpecModel, read_mapping, set_path, validate_model
-from ..core.errors import ConfigError, ScenarioError
+from ..core.errors import ConfigError, ScenarioError, short_repr
 from ..core.family import Family
 from ..core.trace import Trace
 from ..flocking.family import FAMILY as FLOCKING
@@ -43,7 +46,7 @@ def read_scenario(ref: ScenarioRef) -> tuple[dict, str | None]:
     if isinstance(ref, Mapping):
         return read_mapping(ref)
     if not isinstance(ref, (str, Path)) or (isinstance(ref, str) and not ref.strip()):
-        raise ConfigError(f"scenario: expected a file path, a shipped scenario name or a mapping, received {type(ref).__name__} {ref!r}")
+        raise ConfigError(f"scenario: expected a file path, a shipped scenario name or a mapping, received {type(ref).__name__} {short_repr(ref)}")
     return read_mapping(catalogue.resolve(ref))
 
 
@@ -75,11 +78,15 @@ def load_scenario(ref: ScenarioRef, overrides: Mapping[str, Any] | None = None) 
         raise ConfigError(f"overrides: expected a mapping {{'dotted.field': value}}, received {type(overrides).__name__} {overrides!r}")
     for key, value in (overrides or {}).items():
         if not isinstance(key, str) or not key or any(not part for part in key.split(".")):
-            raise ConfigError(f"overrides: expected dotted field paths such as 'robots.radius' as keys, received {key!r}")
-        set_path(data, key, value)
+            raise ConfigError(f"overrides: expected dotted field paths such as 'robots.radius' as keys, received {short_repr(key)}")
+        try:
+            set_path(data, key, value)
+        except ScenarioError as exc:
+            raise ScenarioError(f"overrides {key}: {exc.field}" if exc.field else f"overrides {key}", exc.expected, exc.received, source=source) from None
     fam = family(data.setdefault("family", DEFAULT_FAMILY), source)
     spec = validate_model(fam.spec, data, source)
     spec._source = source
+    check_run_size(spec.run_size(), source)
     return spec
 
 
@@ -90,4 +97,15 @@ def simulate(scenario: ScenarioRef | SpecModel, seed: int | None = None, progres
     ``simulate(spec, seed=trace.seed)`` reproduces every array bit for bit.
     """
     spec = scenario if isinstance(scenario, SpecModel) else load_scenario(scenario)
-    return family_of(spec).simulate(spec, seed=seed, progress=progress)
+    fam = FAMILIES.get(getattr(spec, "family", None)) if isinstance(getattr(spec, "family", None), str) else None
+    if fam is None or not isinstance(spec, fam.spec):
+        raise ConfigError(f"scenario: expected a whole scenario (a family's Spec, as load_scenario returns), received {type(spec).__name__}")
+    if not isinstance(progress, (bool, np.bool_)):
+        raise ConfigError(f"progress: expected True or False, received {short_repr(progress)}")
+    check_run_size(spec.run_size(), spec.source)
+    try:
+        return fam.simulate(spec, seed=seed, progress=bool(progress))
+    except ScenarioError as exc:
+        if exc.source is None and spec.source:  # found while running: name the scenario's file
+            raise exc.with_source(spec.source) from None
+        raise

@@ -17,6 +17,12 @@ Paper 002:
   (their corners turn away from the area). Sections A–C of Fig. 2 fail it.
 * 3.1.3 passages between obstacles, or between obstacles and the border, are at least
   ``W_pass = a + 2 r_safe`` wide (Fig. 3).
+* connected grid: the accessible vertices form one component along travellable edges.
+  Assumption 2.1 (a connected area) with 3.1.3 is meant to give it, but an obstacle that
+  touches the border seals a pocket without any narrow passage (3.1.3 measures only gaps
+  of positive width), and a coarse grid may miss a passage 3.1.3 accepts; the check reads
+  the built grid itself. Theorem 4.1's proof needs it: a robot that starts in a pocket can
+  only visit the pocket.
 
 Theorem 4.1 (all assumptions, rules (1)/(2) with (3) or (4)): with probability 1 all
 targets are found (situation 1) or all vertices detected (situation 2); Section 3: only the
@@ -31,8 +37,9 @@ import numpy as np
 import shapely
 from shapely.geometry import Polygon
 
+from ..core.errors import ConfigError, short_repr
 from ..core.workspace import Workspace
-from .grids import EPS, GridKind
+from .grids import EPS, Grid, GridKind, build_grid, check_grid_arguments
 
 
 @dataclass(frozen=True)
@@ -44,6 +51,7 @@ class AssumptionCheck:
     holds: bool
     value: float
     required: float
+    evidence: str = ""
 
     def __post_init__(self):
         object.__setattr__(self, "holds", bool(self.holds))
@@ -68,7 +76,8 @@ class AssumptionReport:
     def as_dict(self) -> dict:
         """Plain mapping for JSON output / trace metadata."""
         return {
-            "checks": {c.name: {"holds": c.holds, "value": c.value, "required": c.required, "statement": c.statement} for c in self.checks},
+            "checks": {c.name: {"holds": c.holds, "value": c.value, "required": c.required, "statement": c.statement,
+                                **({"evidence": c.evidence} if c.evidence else {})} for c in self.checks},
             "grid": self.grid_kind.value,
             "collision_free": self.collision_free,
             "vertex_complete": self.vertex_complete,
@@ -114,10 +123,30 @@ def narrowest_passage(workspace: Workspace) -> float:
     return float(min(positive)) if positive else float("inf")
 
 
+def accessible_parts(grid: Grid) -> np.ndarray:
+    """Sizes of the components of accessible vertices along travellable edges, largest first."""
+    labels = grid.components[grid.accessible]
+    return np.sort(np.unique(labels, return_counts=True)[1])[::-1]
+
+
+def connectivity_check(grid: Grid) -> AssumptionCheck:
+    """The grid-level premise of Theorem 4.1: one component of accessible vertices."""
+    parts = accessible_parts(grid)
+    sizes = " + ".join(str(int(k)) for k in parts[:6]) + (" + ..." if len(parts) > 6 else "")
+    evidence = f"{len(parts)} part(s) of {sizes} accessible vertices" if len(parts) != 1 else f"1 part of {sizes} accessible vertices"
+    return AssumptionCheck("connected", "one part of accessible vertices connected along travellable edges",
+                           len(parts) <= 1, len(parts), 1, evidence)
+
+
 def check_assumptions(workspace: Workspace, kind: GridKind | str, a: float, r_rob: float, r_safe: float,
-                      r_so: float, r_st: float, r_c: float) -> AssumptionReport:
-    """Evaluate Assumptions 2.4, 2.5, 3.1.1–3.1.3 (and ``r_safe > r_rob``) for an instance."""
-    kind = GridKind(kind)
+                      r_so: float, r_st: float, r_c: float, grid: Grid | None = None) -> AssumptionReport:
+    """Evaluate Assumptions 2.4, 2.5, 3.1.1–3.1.3 (and ``r_safe > r_rob``) for an instance,
+    and whether its grid (``grid``, else built from the arguments) is connected."""
+    kind = check_grid_arguments(workspace, kind, a, r_safe)  # input validation
+    for name, value in (("r_rob", r_rob), ("r_so", r_so), ("r_st", r_st), ("r_c", r_c)):
+        if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer, np.floating)) or not 0 <= value < np.inf:
+            raise ConfigError(f"{name}: expected a finite range ≥ 0, received {short_repr(value)}")
+    grid = grid if grid is not None else build_grid(workspace, kind, a, r_safe)
     turn = max_boundary_turn(workspace, r_st)
     passage = narrowest_passage(workspace)
     checks = (
@@ -128,15 +157,17 @@ def check_assumptions(workspace: Workspace, kind: GridKind | str, a: float, r_ro
         AssumptionCheck("3.1.2", "boundary turn towards A_d within any length r_st <= 1 rad (curvature <= 1/r_st)",
                         turn <= 1.0 + 1e-6, turn, 1.0),
         AssumptionCheck("3.1.3", "passage width >= a + 2 r_safe", passage >= a + 2 * r_safe - EPS, passage, a + 2 * r_safe),
+        connectivity_check(grid),
     )
     ok = {c.name: c.holds for c in checks}
     collision_free = ok["safety"] and ok["2.4"] and ok["2.5"]
-    vertex_complete = collision_free and ok["3.1.3"]
+    vertex_complete = collision_free and ok["3.1.3"] and ok["connected"]
     complete = vertex_complete and ok["3.1.1"] and ok["3.1.2"] and kind is GridKind.TRIANGULAR
-    return AssumptionReport(checks, kind, collision_free, vertex_complete, complete, guarantee_text(collision_free, vertex_complete, complete, kind))
+    text = guarantee_text(collision_free, vertex_complete, complete, kind, len(accessible_parts(grid)))
+    return AssumptionReport(checks, kind, collision_free, vertex_complete, complete, text)
 
 
-def guarantee_text(collision_free: bool, vertex_complete: bool, complete: bool, kind: GridKind) -> str:
+def guarantee_text(collision_free: bool, vertex_complete: bool, complete: bool, kind: GridKind, parts: int = 1) -> str:
     """What Theorem 4.1 and Section 3 promise for this instance, in one sentence."""
     if complete:
         return ("Theorem 4.1 applies: no collisions; with probability 1 all targets are found (situation 1) and every "
@@ -144,6 +175,10 @@ def guarantee_text(collision_free: bool, vertex_complete: bool, complete: bool, 
     if not collision_free:
         return ("No guarantee: with r_so < a + r_safe a blocked edge may go unsensed, with r_c < 2a + r_safe - r_rob "
                 "robots one or two vertices apart may not hear each other's choices, so collisions are possible.")
+    if not vertex_complete and parts > 1:
+        return (f"Collision-free, but the accessible vertices fall apart into {parts} parts (a pocket sealed by obstacles, "
+                "or a passage the grid cannot cross): only the parts holding a robot are searched, a robot starting in a "
+                "pocket searches only that pocket, and targets in a part without robots are never found.")
     if not vertex_complete:
         return ("Collision-free, but a passage narrower than a + 2 r_safe may cut the accessible vertices apart: only the "
                 "vertices connected to the starts are guaranteed to be visited.")

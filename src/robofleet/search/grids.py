@@ -37,7 +37,8 @@ from scipy.sparse import csgraph
 from scipy.spatial import cKDTree
 from shapely.geometry import Polygon, box
 
-from ..core.errors import ConfigError
+from ..core.budget import HOW_TO_RAISE, format_bytes, memory_budget
+from ..core.errors import ConfigError, short_repr
 from ..core.workspace import Workspace
 
 #: tolerance of length comparisons (equality conditions of Table 1 are used verbatim)
@@ -180,11 +181,7 @@ def build_grid(workspace: Workspace, kind: GridKind | str, a: float, r_safe: flo
     ConfigError
         When ``a ≤ 0``, ``r_safe < 0`` or the area holds no lattice point.
     """
-    kind = GridKind(kind)
-    if not (np.isfinite(a) and a > 0):
-        raise ConfigError(f"a: expected a positive edge length, received {a!r}")
-    if not (np.isfinite(r_safe) and r_safe >= 0):
-        raise ConfigError(f"r_safe: expected a non-negative radius, received {r_safe!r}")
+    kind = check_grid_arguments(workspace, kind, a, r_safe)
     xmin, ymin, xmax, ymax = workspace.extent
     origin = np.array([xmin + r_safe, ymin + r_safe])
     extent = np.array([xmax - xmin - r_safe, ymax - ymin - r_safe])
@@ -199,6 +196,41 @@ def build_grid(workspace: Workspace, kind: GridKind | str, a: float, r_safe: flo
     edge_ok = (neighbours >= 0) & np.isinf(block) & accessible[:, None] & accessible[np.maximum(neighbours, 0)]
     block = np.where(edge_ok, np.inf, block)
     return Grid(kind, float(a), float(r_safe), pts, neighbours, accessible, edge_ok, block, choice_priority(pts), workspace)
+
+
+# -- input validation of build_grid ------------------------------------------------------
+GRID_DENSITY = 1.16
+"""Vertices per a² of the densest grid (triangular: 2/√3), for the memory budget."""
+VERTEX_BYTES = 400
+"""Memory of one grid vertex (point, neighbours, edge states, clearances, priorities)."""
+
+
+def vertex_bound(width: float, height: float, a: float) -> float:
+    """At most how many vertices a grid of edge ``a`` has in a ``width`` × ``height`` box."""
+    return GRID_DENSITY * (width / a + 2) * (height / a + 2)
+
+
+def check_grid_arguments(workspace: Workspace, kind: GridKind | str, a: float, r_safe: float) -> GridKind:
+    """The grid kind, after one-line :class:`ConfigError` s for a workspace that is not one,
+    an unknown kind, a non-positive ``a`` or ``r_safe < 0``, and a grid beyond the memory budget."""
+    if not isinstance(workspace, Workspace):
+        raise ConfigError(f"workspace: expected a Workspace, received {short_repr(workspace)}")
+    try:
+        kind = GridKind(kind)
+    except ValueError:
+        raise ConfigError(f"kind: expected one of {[k.value for k in GridKind]}, received {short_repr(kind)}") from None
+    for name, value, positive in (("a", a, True), ("r_safe", r_safe, False)):
+        number = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, (bool, np.bool_))
+        if not (number and np.isfinite(value) and (value > 0 if positive else value >= 0)):
+            what = "a positive edge length" if positive else "a non-negative radius"
+            raise ConfigError(f"{name}: expected {what}, received {short_repr(value)}")
+    xmin, ymin, xmax, ymax = workspace.extent
+    vertices = vertex_bound(xmax - xmin, ymax - ymin, a)
+    budget = memory_budget()
+    if VERTEX_BYTES * vertices > budget:
+        raise ConfigError(f"a: expected an edge length giving a grid within the memory budget of {format_bytes(budget)} "
+                          f"(raise it with {HOW_TO_RAISE}), received {a!r}: up to {vertices:.3g} vertices")
+    return kind
 
 
 def neighbour_table(points: np.ndarray, a: float, degree: int) -> np.ndarray:

@@ -2,7 +2,7 @@
 from them: :func:`check`, what ``robofleet check`` prints.
 
 The conditions on ranges and on the area (``r_safe > r_rob``, Assumptions 2.4, 2.5,
-3.1.1–3.1.3) are computed by :func:`.assumptions.check_assumptions`; this module adds the
+3.1.1–3.1.3, a connected grid) are computed by :func:`.assumptions.check_assumptions`; this module adds the
 ones the scenario model enforces or decides — Assumption 2.1 (obstacles inside the area,
 non-overlapping), Assumption 2.2 (robots start at different border vertices), the Table 1
 design rule (ranges at the equalities of 2.4, 2.5 and 3.1.1), the triangular grid (Section
@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..core.family import Guarantee
+from ..core.family import Guarantee, expect_spec
 from .assumptions import AssumptionCheck, AssumptionReport
 from .decentralized import SequentialPolicy
 from .grids import EPS, GridKind
@@ -33,6 +33,8 @@ ASSUMPTION_NAMES = {
     "3.1.1": ("r_st >= a + r_safe", "Assumption 3.1.1", "areas near inaccessible vertices are detected from their neighbours"),
     "3.1.2": ("concave boundary curvature <= 1/r_st", "Assumption 3.1.2", "no pocket of A_d is out of target-sensing range"),
     "3.1.3": ("passages >= a + 2 r_safe wide", "Assumption 3.1.3", "at least one accessible route through every passage"),
+    "connected": ("accessible vertices connected", "Assumptions 2.1, 3.1.3 on the grid",
+                  "every accessible vertex can be reached from every start (no pocket sealed off)"),
 }
 """Per assumption: the name shown, the paper's reference, and what follows when it holds."""
 
@@ -48,12 +50,13 @@ def check(spec: Spec) -> list[Guarantee]:
     Returns
     -------
     list of Guarantee
-        Assumption 2.1, 2.2, ``r_safe > r_rob``, 2.4, 2.5, 3.1.1–3.1.3 (from
-        :func:`.assumptions.check_assumptions`), the Table 1 design rule, the triangular grid (Section
+        Assumption 2.1, 2.2, ``r_safe > r_rob``, 2.4, 2.5, 3.1.1–3.1.3 and the connected
+        grid (from :func:`.assumptions.check_assumptions`), the Table 1 design rule, the triangular grid (Section
         3), the choice rule, working robots, and the three consequences: collision-free
         moves, every accessible vertex visited (Theorem 4.1) and a complete search of
         ``A_d`` (Theorem 4.1 with Section 3).
     """
+    expect_spec(spec, Spec, "search")  # input validation: a validated search scenario
     report = spec.assumption_report()
     conditions = [area_condition(spec), starts_condition(spec)]
     conditions += [assumption_guarantee(c) for c in report.checks]
@@ -91,7 +94,7 @@ def starts_condition(spec: Spec) -> Guarantee:
 def assumption_guarantee(c: AssumptionCheck) -> Guarantee:
     """One row of :func:`check_assumptions` as a :class:`Guarantee` (value against requirement)."""
     name, reference, consequence = ASSUMPTION_NAMES[c.name]
-    evidence = f"{c.value:.4g} against {c.required:.4g}"
+    evidence = c.evidence or f"{c.value:.4g} against {c.required:.4g}"
     return Guarantee(name, reference, c.holds, detail=f"{evidence} ({c.statement})", consequence=f"{consequence} ({evidence})")
 
 
@@ -137,13 +140,15 @@ def consequences(spec: Spec, report: AssumptionReport) -> list[Guarantee]:
     """What follows (Section 2, Theorem 4.1, Section 3) when the conditions above hold."""
     sequential = choice_condition(spec).holds
     working = failure_condition(spec).holds
+    holds = {c.name: c.holds for c in report.checks}
     target = "all targets are found" if spec.situation == 1 else "every point of A_d is within r_st of a visited vertex"
     return [
         Guarantee("collision-free search", "Section 2, Assumptions 2.4-2.5", report.collision_free and sequential,
                   detail=why_not(("safety, 2.4, 2.5", report.collision_free), ("sequential choices", sequential)),
                   consequence="no robot collides with another robot, an obstacle or the border"),
         Guarantee("every accessible vertex visited", "Theorem 4.1", report.vertex_complete and sequential and working,
-                  detail=why_not(("collision-free, 3.1.3", report.vertex_complete), ("sequential choices", sequential),
+                  detail=why_not(("collision-free", report.collision_free), ("3.1.3", holds["3.1.3"]),
+                                 ("connected grid", holds["connected"]), ("sequential choices", sequential),
                                  ("no failures", working)),
                   consequence=f"with probability 1, stop rule ({3 if spec.situation == 1 else 4}) fires after a finite time"),
         Guarantee("complete search of A_d", "Theorem 4.1, Section 3", report.complete_search and sequential and working,

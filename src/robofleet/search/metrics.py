@@ -4,11 +4,20 @@ Every value is computed from the observer's records (true positions, true visits
 true targets), never from what the robots believe. :data:`RESULTS` documents each key;
 it is the family's ``results`` table (:mod:`~robofleet.search.family`), so every sweep row carries them.
 
-``success`` is the paper's goal met, and only then: the search ended by its stop rule
-with every target found (situation 1, rule (3)), or with every accessible vertex
-reachable from the starts visited and every listed target found (situation 2, rule (4)),
-and no robot ever collided with another robot or touched an obstacle (a collision-free
-search, Section 2).
+``completed`` is the stop rules' verdict: every working robot stopped, by its own rule
+(3)/(4) or by a stop broadcast (step 8) that ends its search — in situation 2 only one
+whose map covers the receiver's vertex, so a robot trapped in a pocket cut off by
+obstacles never ends the others' search (:meth:`.simulation.SearchBatch.stop_received`).
+Without failures, a completed situation-2 run has therefore visited every accessible
+vertex reachable from the starts; a failed robot can seal vertices off (their runs
+complete with ``visited_share`` below 1 and no success).
+
+``success`` is the paper's goal met, and only then: the search ended by its stop rules
+(``completed``) with every target found (situation 1, rule (3)), or with every accessible
+vertex reachable from the starts visited and every listed target found (situation 2,
+rule (4)), and no robot ever collided with another robot or touched an obstacle (a
+collision-free search, Section 2). Vertices in parts of a disconnected grid that hold no
+robot are not reachable from the starts; ``robofleet check`` reports such grids.
 """
 
 from __future__ import annotations
@@ -22,8 +31,8 @@ from .coverage import CoverageProbe
 from .grids import Grid
 
 RESULTS: dict[str, str] = {
-    "search_time": "simulated seconds until the stop broadcast (or the step budget ran out): motion plus choice rounds plus collision penalties",
-    "completed": "a robot's stop rule fired: (3) all targets known in situation 1, (4) no unvisited vertex in its map in situation 2",
+    "search_time": "simulated seconds until the last working robot stopped (or the step budget ran out): motion plus choice rounds plus collision penalties",
+    "completed": "every working robot stopped by rule (3) (all targets known, situation 1) or (4) (no unvisited vertex in its map, situation 2), its own or a stop broadcast whose map covers its vertex",
     "found_targets": "targets detected (within r_st of a robot) by the end",
     "n_targets": "targets in the scenario",
     "visited_share": "share of the accessible vertices reachable from the starts that a robot stood on",
@@ -49,7 +58,7 @@ class RunRecord:
     search_time:
         simulated seconds.
     completed:
-        whether a stop rule fired.
+        whether every working robot stopped by a stop rule (own or received).
     steps:
         steps taken (moves).
     found:

@@ -11,8 +11,12 @@ One iteration ``k`` (all robots simultaneously, Section 4):
   their maps (and visited in situation 2).
 - 3\\. **Exchange maps** with communication neighbours (robots within ``r_c``).
 - 7\\. **Stop check**: rule (3) in situation 1 (all targets known), rule (4) in situation 2 (no
-  unvisited vertex in the robot's map); 8. a stopping robot **broadcasts the stop** and the
-  search ends.
+  unvisited vertex in the robot's map); 8. a stopping robot **broadcasts the stop** (with
+  its map in situation 2) and stops. The stop ends the search of every robot in situation
+  1, and in situation 2 of every robot whose vertex the stopper's map covers — every robot
+  of a connected grid, as in the paper; a robot trapped in a pocket cut off by obstacles
+  ends only its own search (a deviation for grids the paper assumes away, Assumption 2.1
+  with 3.1.3). The run ends, *completed*, once every working robot has stopped.
 - 4–5\\. **Choose** (the policy: sequential rules (1)/(2), RU or LFP).
 - 6\\. **Move**: rotate, then translate one edge with a trapezoidal profile; the step lasts as
   long as the slowest robot plus the choice rounds (:mod:`.timing`).
@@ -40,7 +44,9 @@ from typing import Any
 
 import numpy as np
 
+from ..core import arguments
 from ..core.errors import ConfigError
+from ..core.family import expect_spec
 from ..core.recorder import Recorder
 from ..core.rng import keyed_generator, resolve_seed
 from ..core.trace import Trace
@@ -158,7 +164,8 @@ class SearchBatch:
         self.visited = np.zeros((self.R, grid.n_vertices), dtype=bool)
         self.time = np.zeros(self.R)
         self.steps = np.full(self.R, p.max_steps)
-        self.stopped_by = np.full(self.R, -1)
+        self.stopped = np.zeros(N, dtype=bool)
+        self.completed = np.zeros(self.R, dtype=bool)
         self.collisions = np.zeros(self.R, dtype=np.intp)
         self.obstacle_collisions = np.zeros(self.R, dtype=np.intp)
         self.rounds = np.zeros(self.R, dtype=np.intp)
@@ -223,12 +230,55 @@ class SearchBatch:
             self.maps.set(0, watchers, self.pos[silent])
 
     def stop_reached(self, active: np.ndarray) -> np.ndarray:
-        """Rules (3)/(4) per robot (only active robots can stop)."""
+        """Rules (3)/(4) per robot, on its own map (only active robots can stop)."""
         if self.p.situation == 1:
             done = self.maps.targets.all(axis=1)
         else:
             done = self.maps.frontier_empty()
         return done & active
+
+    def stop_received(self, own: np.ndarray, active: np.ndarray) -> np.ndarray:
+        """Step 8: the active robots that a stop broadcast by the robots ``own`` ends.
+
+        Situation 1: rule (3) speaks of the targets, which every robot of the run knows
+        alike, so the stop ends the search of every robot of the run (the paper's step 8).
+        Situation 2: the stop carries the stopper's map, closed under travellable edges
+        (rule (4)); it ends the search of a receiver whose vertex that map holds as sensed
+        and not blocked: the receiver's whole accessible component is then visited. In a
+        connected grid that is every robot (the paper's step 8); a robot trapped in a
+        pocket, whose map covers only the pocket, no longer ends the others' search.
+        """
+        R, n = self.R, self.n
+        stoppers, receivers = own.reshape(R, n), active.reshape(R, n) & ~own.reshape(R, n)
+        if self.p.situation == 1:
+            return (receivers & stoppers.any(axis=1, keepdims=True)).ravel()
+        runs, i, j = np.nonzero(receivers[:, :, None] & stoppers[:, None, :])
+        heard = np.zeros(R * n, dtype=bool)
+        if len(runs):
+            receiver, stopper = runs * n + i, runs * n + j
+            where = self.pos[receiver][:, None]
+            covers = self.maps.test(3, stopper, where)[:, 0] & ~self.maps.test(2, stopper, where)[:, 0]
+            heard[receiver[covers]] = True
+        return heard
+
+    def stop_robots(self, step: int, active: np.ndarray) -> np.ndarray:
+        """Steps 7–8: robots whose stop rule fires, and the receivers their stop broadcast
+        ends (:meth:`stop_received`), stop for good; a run ends — completed — once every
+        working robot of it has stopped. Returns the robots still active."""
+        own = self.stop_reached(active)
+        if not own.any():
+            return active
+        heard = self.stop_received(own, active)
+        if self.record:
+            for r in np.flatnonzero(own | heard):
+                self.event(step, "stop", robot=int(r), rule="own" if own[r] else "received")
+        self.stopped |= own | heard
+        stopped, working = self.stopped.reshape(self.R, self.n), self.alive.reshape(self.R, self.n)
+        finished = self.running & stopped.any(axis=1) & ~(working & ~stopped).any(axis=1)
+        self.completed |= finished
+        self.steps[finished] = step
+        self.running &= ~finished
+        return self.alive & ~self.stopped & self.running[self.run_of]
 
     # -- step 6 -------------------------------------------------------------------------
     def move(self, step: int, choice: np.ndarray, rounds: np.ndarray) -> None:
@@ -317,7 +367,7 @@ class SearchBatch:
         p, R, n = self.p, self.R, self.n
         if self.has_failures:
             self.fail_robots(step)
-        active = self.alive & self.running[self.run_of]
+        active = self.alive & ~self.stopped & self.running[self.run_of]
         live = np.flatnonzero(active)
         links = sensed = self.no_links
         if n > 1:
@@ -334,15 +384,7 @@ class SearchBatch:
         self.sense(step, live)
         if self.policy.communicates and links.any():
             self.maps.exchange(links)
-        done = self.stop_reached(active).reshape(R, n)
-        finished = done.any(axis=1) & self.running
-        if finished.any():
-            self.stopped_by[finished] = np.argmax(done[finished], axis=1)
-            self.steps[finished] = step
-            for r in np.flatnonzero(finished):
-                self.event(step, "stop", robot=int(self.stopped_by[r]))
-            self.running &= ~finished
-            active = self.alive & self.running[self.run_of]
+        active = self.stop_robots(step, active)
         self.active, self.links, self.sensed = active, links, sensed
         return not self.running.any()
 
@@ -360,7 +402,7 @@ class SearchBatch:
         mine = slice(r * self.n, (r + 1) * self.n)
         steps = int(self.steps[r])
         record = RunRecord(
-            situation=p.situation, search_time=float(self.time[r]), completed=bool(self.stopped_by[r] >= 0), steps=steps,
+            situation=p.situation, search_time=float(self.time[r]), completed=bool(self.completed[r]), steps=steps,
             found=self.maps.targets[mine].any(axis=0), visited=self.visited[r].copy(),
             reachable=p.grid.reachable_from(self.starts[r]) & p.grid.accessible, collisions=int(self.collisions[r]),
             obstacle_collisions=int(self.obstacle_collisions[r]), rounds=int(self.rounds[r]),
@@ -378,6 +420,14 @@ def check_batch(problems: list[SearchProblem], algorithm: Algorithm) -> None:
             raise ConfigError("problems: expected runs on one grid with the same robots and targets, received a mixed batch")
 
 
+def checked_algorithm(algorithm: Algorithm | str) -> Algorithm:
+    """``algorithm`` as an :class:`Algorithm`, or a one-line :class:`ConfigError` (input validation)."""
+    try:
+        return Algorithm(algorithm)
+    except ValueError:
+        raise ConfigError(f"algorithm: expected one of {[a.value for a in Algorithm]}, received {algorithm!r}") from None
+
+
 def run_search(problem: SearchProblem, algorithm: Algorithm | str, seed: int) -> SearchOutcome:
     """Simulate one search run of ``algorithm`` on ``problem`` with per-robot streams from ``seed``.
 
@@ -386,7 +436,8 @@ def run_search(problem: SearchProblem, algorithm: Algorithm | str, seed: int) ->
     ConfigError
         For LFP in situation 2 (LFP keeps no map, so stop rule (4) has no meaning).
     """
-    return SearchBatch([problem], Algorithm(algorithm), [int(seed)]).run()[0]
+    arguments.instance(problem, SearchProblem, "problem", "a SearchProblem (build_problem)")  # input validation
+    return SearchBatch([problem], checked_algorithm(algorithm), [resolve_seed(seed)]).run()[0]
 
 
 def run_search_batch(problems: list[SearchProblem], algorithm: Algorithm | str, seeds: list[int]) -> list[SearchOutcome]:
@@ -488,6 +539,7 @@ def simulate(spec: Spec, seed: int | None = None, progress: bool = False) -> Tra
         (each with the run's clock ``time``); results of
         :data:`metrics.RESULTS <robofleet.search.metrics.RESULTS>` and ``success``.
     """
+    expect_spec(spec, Spec, "search")  # input validation: a validated search scenario
     seed = resolve_seed(seed)
     problem = build_problem(spec, seed)
     rec = recorder_for(spec, problem, progress)

@@ -30,12 +30,13 @@ import numpy as np
 import shapely
 from pydantic import Field, field_validator, model_validator
 
+from ..core.budget import RunSize
 from ..core.config import SpecModel
 from ..core.errors import ConfigError, ScenarioError
 from ..core.spec_blocks import WorkspaceSpec
 from ..core.workspace import Workspace
 from .assumptions import AssumptionReport, check_assumptions
-from .grids import Grid, GridKind, build_grid
+from .grids import VERTEX_BYTES, Grid, GridKind, build_grid, vertex_bound
 from .timing import MotionTiming
 
 Point = tuple[float, float]
@@ -59,8 +60,12 @@ LABELS = {
 """The algorithms' names in Fig. 7's legend."""
 
 REQUIRED_FIELD = {"safety": "ranges.r_safe", "2.4": "ranges.r_so", "2.5": "ranges.r_c", "3.1.1": "ranges.r_st",
-                  "3.1.2": "workspace", "3.1.3": "workspace.obstacles"}
+                  "3.1.2": "workspace", "3.1.3": "workspace.obstacles", "connected": "workspace.obstacles"}
 """The scenario field an error names when an assumption fails under ``require_guarantee``."""
+
+
+SENSING_ROWS = 8
+"""V-bit rows per vertex the sensing tables and step-2 rows hold (:mod:`.sensing`)."""
 
 
 class SearchWorkspaceSpec(WorkspaceSpec):
@@ -189,12 +194,24 @@ class Spec(SpecModel):
             self._check_guarantee()
         return self
 
+    # -- memory budget (input validation, robofleet.core.budget) --------------------------
+    def run_size(self) -> RunSize:
+        """What a run holds: per robot and step a position, a vertex and a clock; the grid
+        (at most :func:`.grids.vertex_bound` vertices of the area's bounding box), its sensing tables (bit rows of V × V: quadratic in V) and every robot's map."""
+        lower, upper = self.workspace.bounds_vertices().min(axis=0), self.workspace.bounds_vertices().max(axis=0)
+        vertices = vertex_bound(*(upper - lower), self.grid.a)
+        n = self.robots.n
+        extra = VERTEX_BYTES * vertices + SENSING_ROWS * vertices**2 / 8 + n * vertices * (4 / 8 + len(self.targets))
+        return RunSize(self.max_steps, n, 32, "max_steps", "robots.count" if self.robots.count is not None else "robots.starts",
+                       int(min(extra, 2**62)), "grid, sensing tables and maps", "grid.a")
+
     def built_grid(self) -> Grid:
         """The grid of this scenario (built once per process per area, kind, ``a`` and ``r_safe``)."""
         return cached_grid(self.workspace.model_dump_json(), self.grid.kind.value, self.grid.a, self.ranges.r_safe)
 
     def assumption_report(self) -> AssumptionReport:
-        """Assumptions 2.4, 2.5, 3.1.1–3.1.3 evaluated for this scenario (:func:`.assumptions.check_assumptions`)."""
+        """Assumptions 2.4, 2.5, 3.1.1–3.1.3 and the grid's connectivity evaluated for this
+        scenario (:func:`.assumptions.check_assumptions`)."""
         r = self.ranges
         return cached_report(self.workspace.model_dump_json(), self.grid.kind.value, self.grid.a, self.ranges.r_safe,
                              r.r_rob, r.r_so, r.r_st, r.r_c)
@@ -229,7 +246,9 @@ class Spec(SpecModel):
     def _check_guarantee(self) -> None:
         report = self.assumption_report()
         for c in report.failed():
-            raise ScenarioError(REQUIRED_FIELD[c.name], f"Assumption {c.name} ({c.statement}; required {c.required:.4g}) since require_guarantee is true", round(c.value, 6))
+            numbered = c.name[0].isdigit()
+            what = f"Assumption {c.name} ({c.statement}; required {c.required:.4g})" if numbered else f"{c.statement} (required {c.required:.4g})"
+            raise ScenarioError(REQUIRED_FIELD[c.name], f"{what} since require_guarantee is true", c.evidence or round(c.value, 6))
         if self.situation == 2 and self.grid.kind is not GridKind.TRIANGULAR:
             raise ScenarioError("grid.kind", "triangular when require_guarantee is true in situation 2 (Section 3)", self.grid.kind.value)
 
@@ -250,8 +269,8 @@ def cached_grid(workspace_json: str, kind: str, a: float, r_safe: float) -> Grid
 def cached_report(workspace_json: str, kind: str, a: float, r_safe: float, r_rob: float, r_so: float, r_st: float,
                   r_c: float) -> AssumptionReport:
     """:func:`.assumptions.check_assumptions` on the grid's workspace, once per process per instance."""
-    workspace = cached_grid(workspace_json, kind, a, r_safe).workspace
-    return check_assumptions(workspace, kind, a, r_rob, r_safe, r_so, r_st, r_c)
+    grid = cached_grid(workspace_json, kind, a, r_safe)
+    return check_assumptions(grid.workspace, kind, a, r_rob, r_safe, r_so, r_st, r_c, grid=grid)
 
 
 @lru_cache(maxsize=32)

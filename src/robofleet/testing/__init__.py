@@ -30,7 +30,9 @@ from typing import Any
 import numpy as np
 
 from ..core.config import SpecModel
-from ..core.errors import RobofleetError
+from ..core import arguments
+from ..core.errors import ConfigError, RobofleetError, short_repr
+from ..core.rng import resolve_seed
 from ..core.family import Family, Guarantee
 from ..core.trace import CORE_SUMMARY_KEYS, Trace, dumps_json
 from ..scenarios import FAMILIES, catalogue, family_of, load_scenario
@@ -52,6 +54,7 @@ def check_scenario(ref: str | Path | SpecModel, *, steps: int = 5, seed: int = 7
 
     Returns the checked trace; raises :class:`ConformanceError` listing every failed check.
     """
+    check_arguments(steps, seed, figures)
     spec = ref if isinstance(ref, SpecModel) else load_scenario(ref)
     family = family_of(spec)
     spec = load_scenario(spec.source if spec.source else spec.model_dump(mode="json"), {family.budget: steps})
@@ -79,12 +82,20 @@ def check_scenario(ref: str | Path | SpecModel, *, steps: int = 5, seed: int = 7
 
 def check_family(name: str, *, steps: int = 5, seed: int = 7, figures: bool = True) -> list[str]:
     """:func:`check_scenario` on every shipped scenario of family ``name``; returns their names."""
-    if name not in FAMILIES:
-        raise ConformanceError(f"family: expected one of {sorted(FAMILIES)}, received {name!r}")
+    if not isinstance(name, str) or name not in FAMILIES:
+        raise ConfigError(f"name: expected one of {sorted(FAMILIES)}, received {short_repr(name)}")
+    check_arguments(steps, seed, figures)
     checked = [e.name for e in catalogue.list() if e.family == name]
     for entry in checked:
         check_scenario(entry, steps=steps, seed=seed, figures=figures)
     return checked
+
+
+def check_arguments(steps: Any, seed: Any, figures: Any) -> None:
+    """The shared arguments of :func:`check_scenario` and :func:`check_family`."""
+    arguments.count(steps, "steps", minimum=1)
+    resolve_seed(seed, "seed")
+    arguments.flag(figures, "figures")
 
 
 def compare_traces(a: Trace, b: Trace, what: str) -> list[str]:

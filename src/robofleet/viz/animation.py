@@ -2,18 +2,24 @@
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from pathlib import Path
-from typing import Callable
+from typing import Any
 
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-from matplotlib.animation import FuncAnimation, PillowWriter  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
+from matplotlib.animation import FuncAnimation, PillowWriter
+from matplotlib.lines import Line2D
+from matplotlib.transforms import blended_transform_factory
+
+from ..core.progress import tracked
+from ..core.trace import Trace
 
 
-def save_figure(fig: "plt.Figure", path: str | Path, dpi: int = 120, tight: bool = False) -> Path:
+def save_figure(fig: plt.Figure, path: str | Path, dpi: int = 120, tight: bool = False) -> Path:
     """Write ``fig`` to ``path`` (parent folders created), close it, return the path."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -24,16 +30,20 @@ def save_figure(fig: "plt.Figure", path: str | Path, dpi: int = 120, tight: bool
     return path
 
 
-def save_gif(fig: "plt.Figure", update: Callable[[int], object], frames: Iterable[int], path: str | Path, fps: int = 10) -> Path:
+def save_gif(fig: plt.Figure, update: Callable[[int], object], frames: Iterable[int], path: str | Path, fps: int = 10,
+             progress: bool = True) -> Path:
     """Render ``update(frame)`` for every item of ``frames`` into a GIF at ``path``.
 
     ``update`` redraws the figure for one frame (it may return artists; blitting is off).
-    The figure is closed afterwards.
+    A progress bar counts the rendered frames (on a terminal, unless ``progress`` is
+    false). The figure is closed afterwards.
     """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
+    frames = list(frames)
     anim = FuncAnimation(fig, update, frames=frames, blit=False, cache_frame_data=False)
-    anim.save(str(path), writer=PillowWriter(fps=fps))
+    with tracked(len(frames), f"rendering {path.name}", enabled=progress) as advance:
+        anim.save(str(path), writer=PillowWriter(fps=fps), progress_callback=lambda i, n: advance())
     plt.close(fig)
     return path
 
@@ -47,3 +57,66 @@ def frame_indices(n_steps: int, max_frames: int = 150) -> list[int]:
     if idx[-1] != n_steps - 1:
         idx.append(n_steps - 1)
     return idx
+
+
+def method_of(trace: Trace) -> str:
+    """The method a run used, as its family records it (``method``, else ``algorithm`` and scheduler)."""
+    md = trace.metadata
+    if md.get("method"):
+        return str(md["method"])
+    algorithm = md.get("algorithm_label") or md.get("algorithm")
+    if isinstance(algorithm, dict):
+        algorithm = algorithm.get("kind")
+    scheduler = md.get("scheduler")
+    if isinstance(scheduler, dict):
+        scheduler = str(scheduler.get("kind", "")).upper()
+    return " · ".join(str(p) for p in (algorithm, scheduler) if p)
+
+
+def run_title(trace: Trace) -> str:
+    """``scenario · method · seed S``: the title every figure and animation of a run starts with."""
+    parts = [trace.scenario or trace.family, method_of(trace)]
+    seed = trace.metadata.get("seed")
+    return " · ".join(p for p in parts if p) + (f" · seed {seed}" if seed is not None else "")
+
+
+def proxy(label: str, *, color: Any = "k", marker: str = "", ls: str = "", ms: float = 7, mfc: Any = None, lw: float = 1.5) -> Line2D:
+    """A legend entry for something drawn without a label (patches, per-frame artists)."""
+    return Line2D([], [], color=color, marker=marker or None, ls=ls or "none", ms=ms, lw=lw,
+                  mfc=color if mfc is None else mfc, label=label)
+
+
+def outside_legend(ax: plt.Axes, handles: list, fontsize: float = 7) -> None:
+    """The legend of ``handles`` to the right of the axes (it never hides what is drawn)."""
+    ax.legend(handles=handles, fontsize=fontsize, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0)
+
+
+def visible_legend(ax: plt.Axes, **kwargs: Any) -> None:
+    """A legend of the labelled artists that show data (an empty series gets no entry)."""
+    handles, labels = [], []
+    for handle, label in zip(*ax.get_legend_handles_labels(), strict=True):
+        data = getattr(handle, "get_xdata", None)
+        if data is not None and len(data()) == 0:
+            continue
+        handles.append(handle)
+        labels.append(label)
+    if handles:
+        ax.legend(handles, labels, **kwargs)
+
+
+def mark_zero_rates(ax: plt.Axes, x: Any, upper: Any = None, *, color: Any = "C0") -> None:
+    """Rates of 0 on a log axis, honestly: an open ▽ at the 95 % upper bound of the rate,
+    labelled ``0 observed (upper bound …)``; without a known bound, ▽ on the lower edge of
+    the axes labelled ``0 observed (no upper bound recorded)``. Nothing is drawn at an
+    invented floor."""
+    x = np.atleast_1d(np.asarray(x, float))
+    if not len(x):
+        return
+    if upper is not None and len(np.atleast_1d(upper)) == len(x) and np.all(np.asarray(upper, float) > 0):
+        upper = np.atleast_1d(np.asarray(upper, float))
+        span = f"{upper.min():.1e}" + (f"–{upper.max():.1e}" if upper.max() > upper.min() else "")
+        ax.plot(x, upper, "v", mfc="white", mec=color, ms=8, ls="none", label=f"0 observed (upper bound {span})")
+        return
+    edge = blended_transform_factory(ax.transData, ax.transAxes)
+    ax.plot(x, np.full(len(x), 0.03), "v", mfc="white", mec=color, ms=8, ls="none", transform=edge, clip_on=False,
+            label="0 observed (no upper bound recorded)")

@@ -21,12 +21,22 @@ from typing import TYPE_CHECKING
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-from matplotlib.patches import Circle, Ellipse, Polygon as PolygonPatch  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
+from matplotlib.patches import Circle, Ellipse
+from matplotlib.patches import Polygon as PolygonPatch
 
-from ..core.trace import Trace  # noqa: E402
-from .animation import frame_indices, save_figure, save_gif  # noqa: E402
+from ..core.trace import Trace
+from .animation import (
+    frame_indices,
+    mark_zero_rates,
+    outside_legend,
+    proxy,
+    run_title,
+    save_figure,
+    save_gif,
+    visible_legend,
+)
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -101,12 +111,6 @@ def robot_colours(trace: Trace, k: int | None = None) -> np.ndarray:
     return plt.cm.viridis(norm(trace.positions[0 if k is None else k, :, 2]))
 
 
-def run_title(trace: Trace) -> str:
-    """``scenario · method`` of a run."""
-    parts = [str(trace.metadata.get("scenario") or ""), str(trace.metadata.get("method") or "")]
-    return " · ".join(p for p in parts if p)
-
-
 def outcome_text(trace: Trace) -> str:
     """``success=..., collisions=...`` from the run's results (what was recorded)."""
     summary = trace.summary()
@@ -128,8 +132,14 @@ def plot_trace(trace: Trace, path: str | Path) -> Path:
         ax.plot(pos[:, i, 0], pos[:, i, 1], color=colours[i], lw=1)
         ax.plot(*pos[0, i, :2], "o", color=colours[i], ms=4)
         ax.plot(*goals[i, :2], "x", color=colours[i], ms=6)
-    ax.set_title(f"{run_title(trace)}: {outcome_text(trace)}" + (" (top view)" if is_three_d(trace) else ""), fontsize=9)
-    return save_figure(fig, path)
+    ax.set(xlabel="x [m]", ylabel="y [m]")
+    ax.set_title(f"{run_title(trace)}\n{outcome_text(trace)}" + (" (top view)" if is_three_d(trace) else ""), fontsize=9)
+    handles = [proxy("path (one colour per robot)", color="C0", ls="-"), proxy("start", color="C0", marker="o", ms=5),
+               proxy("goal", color="C0", marker="x")]
+    if trace.workspace is not None and len(trace.workspace.obstacles) or trace.metadata.get("boxes"):
+        handles.append(proxy("obstacle" + (" (footprint)" if is_three_d(trace) else ""), color="0.35", marker="s", ms=9))
+    outside_legend(ax, handles)
+    return save_figure(fig, path, tight=True)
 
 
 # -- cells and uncertainty -------------------------------------------------------------
@@ -193,10 +203,12 @@ def animate_trace(trace: Trace, path: str | Path, fps: int = 10, max_frames: int
     cov = trace.metadata.get("robot_cov")
     ellipse = uncertainty_ellipse(cov, 3.0) if cov is not None and not is_three_d(trace) else None
     clip = clip_region(trace)
-    fig, ax = plt.subplots(figsize=(6, 6))
+    arrival = np.asarray(trace.arrays.get("arrival_steps", np.full(pos.shape[1], -1)))
+    fig, ax = plt.subplots(figsize=(7.6, 6))
     if is_three_d(trace):
         mappable = plt.cm.ScalarMappable(norm=plt.Normalize(*height_range(trace)), cmap="viridis")
-        fig.colorbar(mappable, ax=ax, label="height z [m]", shrink=0.8)
+        fig.colorbar(mappable, ax=ax, label="height z [m]", shrink=0.8, pad=0.02)
+    handles = animation_legend(trace, cells is not None, ellipse is not None, headings is not None)
 
     def update(k: int):
         ax.clear()
@@ -204,7 +216,8 @@ def animate_trace(trace: Trace, path: str | Path, fps: int = 10, max_frames: int
         colours = robot_colours(trace, k) if is_three_d(trace) else robot_colours(trace)
         trail = pos[max(0, k - TRAIL_STEPS): k + 1]
         for i in range(pos.shape[1]):
-            if cells is not None and len(cells[0]):
+            arrived = 0 <= arrival[i] <= k
+            if cells is not None and len(cells[0]) and not arrived:  # an arrived robot's cell only hides the others
                 step = min(k, len(cells[0]) - 1)
                 polygon = cell_polygon(cells[0][step, i], cells[1][step, i], clip)
                 if len(polygon) >= 3:
@@ -217,9 +230,28 @@ def animate_trace(trace: Trace, path: str | Path, fps: int = 10, max_frames: int
             if headings is not None and np.isfinite(headings[k, i]):
                 draw_heading(ax, pos[k, i], float(headings[k, i]), radius)
             ax.plot(*goals[i, :2], "x", color=colours[i])
-        ax.set_title(f"{run_title(trace)}  t = {k * dt:.1f} s", fontsize=9)
+        ax.set(xlabel="x [m]", ylabel="y [m]")
+        ax.set_title(f"{run_title(trace)}" + (" (top view)" if is_three_d(trace) else "") + f"\nt = {k * dt:.1f} s", fontsize=9)
+        outside_legend(ax, handles)
 
+    fig.subplots_adjust(left=0.1, right=0.68 if not is_three_d(trace) else 0.62)
     return save_gif(fig, update, frame_indices(len(pos), max_frames), path, fps)
+
+
+def animation_legend(trace: Trace, cells: bool, ellipses: bool, headings: bool) -> list:
+    """Legend entries of what :func:`animate_trace` draws for this trace."""
+    colour = "C0"
+    handles = [proxy("robot (true position)" + (", colour = height" if is_three_d(trace) else ""), color=colour, marker="o", ms=9),
+               proxy(f"trail (last {TRAIL_STEPS} steps)", color=colour, ls="-", lw=0.8), proxy("goal", color=colour, marker="x")]
+    if cells:
+        handles.append(proxy("B-UAVC cell (robots not arrived)", color=colour, marker="s", ms=10, mfc=(0.12, 0.47, 0.71, 0.15)))
+    if ellipses:
+        handles.append(proxy("3σ ellipse of the estimate", color=colour, ls="--", lw=0.8))
+    if headings:
+        handles.append(proxy("heading", color="k", ls="-", lw=0.8))
+    if trace.workspace is not None and len(trace.workspace.obstacles) or trace.metadata.get("boxes"):
+        handles.append(proxy("obstacle", color="0.35", marker="s", ms=10))
+    return handles
 
 
 # -- reproduction figures -----------------------------------------------------------------
@@ -240,15 +272,20 @@ def plot_buavc_comparison(noise: pd.DataFrame, delta: pd.DataFrame, path: str | 
     axes[0].set(xlabel="σ [m]", ylabel="runs with a collision", title="collisions vs noise")
     axes[1].set(xlabel="σ [m]", ylabel="success rate", title="success vs noise")
     axes[2].set(xlabel="σ [m]", ylabel="mean travel time [s]", title="travel time vs noise")
-    axes[0].legend()
     d = delta["delta"].to_numpy(float)
     pooled = delta["pair_step_pooled"].to_numpy(float)
+    upper = delta["pair_step_upper"].to_numpy(float)
     seen = pooled > 0
     axes[3].loglog(d[seen], pooled[seen], "o", color="C0", label="B-UAVC, observed per pair and step")
-    axes[3].loglog(d, delta["pair_step_upper"].to_numpy(float), "v-", color="C0", label="95 % upper bound of the observed rate")
+    axes[3].loglog(d[seen], upper[seen], "_", color="C0", ms=12, mew=1.5, label="95 % upper bound of an observed rate")
+    mark_zero_rates(axes[3], d[~seen], upper[~seen])
     axes[3].loglog(d, d, "k--", label="bound δ")
-    axes[3].set(xlabel="δ", ylabel="empirical collision probability", title="chance constraint")
-    axes[3].legend(fontsize=7)
+    axes[3].set(xlabel="δ (risk threshold per pair and step)", ylabel="collision probability per pair and step",
+                title="chance constraint (Eq. 12)")
+    visible_legend(axes[3], fontsize=7)
+    visible_legend(axes[0])
+    runs = f" · {int(noise['runs'].max())} runs per point" if "runs" in noise and len(noise) else ""
+    fig.suptitle(f"reproduce buavc: B-UAVC, BVC and inflated BVC, circle swaps{runs}", fontsize=10)
     return save_figure(fig, path, tight=True)
 
 
@@ -277,20 +314,83 @@ def plot_models_noise(noise: pd.DataFrame, path: str | Path) -> Path:
     return save_figure(fig, path, tight=True)
 
 
-def plot_models_delta(delta: pd.DataFrame, path: str | Path, floor: float = 1e-7) -> Path:
+def plot_models_delta(delta: pd.DataFrame, path: str | Path) -> Path:
     """``robofleet reproduce buavc-models``: B-UAVC's mean per-step pair collision rate
-    against δ per model, with the bound y = δ; rates of 0 are drawn at ``floor``.
+    against δ per model, with the bound y = δ. A rate of 0 is not drawn at an invented
+    floor: it is marked ``0 observed`` at its 95 % upper bound when the table has
+    ``pair_step_upper``, else on the lower edge of the axes.
 
-    ``delta`` has columns ``model, delta, pair_step_rate``.
+    ``delta`` has columns ``model, delta, pair_step_rate`` (and optionally ``pair_step_upper``).
     """
-    fig, ax = plt.subplots(figsize=(4.5, 3.6))
-    for model, group in delta.groupby("model"):
+    fig, ax = plt.subplots(figsize=(5.6, 3.8))
+    for k, (model, group) in enumerate(delta.groupby("model")):
         group = group.sort_values("delta")
-        ax.plot(group["delta"], np.maximum(group["pair_step_rate"].to_numpy(float), floor), marker="o", label=model.replace("_", " "))
+        rate = group["pair_step_rate"].to_numpy(float)
+        seen = rate > 0
+        ax.plot(group["delta"].to_numpy(float)[seen], rate[seen], marker="o", color=f"C{k}", label=model.replace("_", " "))
+        upper = group["pair_step_upper"].to_numpy(float)[~seen] if "pair_step_upper" in group else None
+        mark_zero_rates(ax, group["delta"].to_numpy(float)[~seen], upper, color=f"C{k}")
     d = np.array(sorted(delta["delta"].unique()), float)
     ax.plot(d, d, "k--", label="bound δ")
     ax.set_xscale("log")
     ax.set_yscale("log")
-    ax.set(xlabel="δ", ylabel="pair collision rate per step", title=f"chance constraint (0 drawn at {floor:g})")
-    ax.legend(fontsize=7)
+    ax.set(xlabel="δ (risk threshold per pair and step)", ylabel="pair collision rate per step",
+           title="reproduce buavc-models: chance constraint, B-UAVC")
+    visible_legend(ax, fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))
     return save_figure(fig, path, tight=True)
+
+
+# -- cells in bulk ------------------------------------------------------------------------
+def halfplanes_of_polygon(polygon: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(A, b)`` with ``{p : A p ≤ b}`` the convex polygon (either orientation)."""
+    polygon = np.asarray(polygon, float)
+    x, y = polygon[:, 0], polygon[:, 1]
+    if np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1)) < 0:
+        polygon = polygon[::-1]
+    edges = np.roll(polygon, -1, axis=0) - polygon
+    normals = np.stack([edges[:, 1], -edges[:, 0]], axis=1)
+    return normals, np.einsum("kd,kd->k", normals, polygon)
+
+
+def cell_polygons(A: np.ndarray, b: np.ndarray, clip: np.ndarray, chunk: int = 20_000) -> tuple[np.ndarray, np.ndarray]:
+    """Many cells at once: vertex counts ``(B,)`` and the stacked counter-clockwise
+    vertices ``(sum, 2)`` of each ``{p : A[k] p ≤ b[k]} ∩ clip`` (``A (B, m, 2)``,
+    ``b (B, m)``; rows with ``a = 0`` are padding; a cell of fewer than three vertices has
+    count 0). The same polygons as :func:`cell_polygon`, found as the feasible pairwise
+    intersections of the boundary lines."""
+    A, b = np.asarray(A, float).reshape(-1, *np.shape(A)[-2:]), np.asarray(b, float).reshape(-1, np.shape(b)[-1])
+    clip_A, clip_b = halfplanes_of_polygon(clip)
+    counts, vertices = [], []
+    for start in range(0, len(A), chunk):
+        n, v = _cell_chunk(A[start:start + chunk], b[start:start + chunk], clip_A, clip_b)
+        counts.append(n)
+        vertices.append(v)
+    return (np.concatenate(counts) if counts else np.zeros(0, np.int64)), (np.concatenate(vertices) if vertices else np.zeros((0, 2)))
+
+
+def _cell_chunk(A: np.ndarray, b: np.ndarray, clip_A: np.ndarray, clip_b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    B = len(A)
+    active = np.any(A != 0, axis=-1)
+    AA = np.concatenate([A, np.broadcast_to(clip_A, (B, *clip_A.shape))], axis=1)
+    bb = np.concatenate([np.where(active, b, np.inf), np.broadcast_to(clip_b, (B, len(clip_b)))], axis=1)
+    i, j = np.triu_indices(AA.shape[1], 1)
+    a1, a2, b1, b2 = AA[:, i], AA[:, j], bb[:, i], bb[:, j]
+    det = a1[..., 0] * a2[..., 1] - a1[..., 1] * a2[..., 0]
+    ok = (np.abs(det) > 1e-12) & np.isfinite(b1) & np.isfinite(b2)
+    safe = np.where(ok, det, 1.0)
+    with np.errstate(invalid="ignore"):
+        pts = np.stack([(b1 * a2[..., 1] - b2 * a1[..., 1]) / safe, (a1[..., 0] * b2 - a2[..., 0] * b1) / safe], axis=-1)
+        slack = np.einsum("bcd,bpd->bpc", AA, np.where(ok[..., None], pts, 0.0)) - bb[:, None, :]
+    scale = 1e-9 * (1.0 + np.abs(np.where(np.isfinite(bb), bb, 0.0)))[:, None, :]
+    ok &= np.all(slack <= scale, axis=-1)
+    pts = np.where(ok[..., None], pts, 0.0)
+    centre = pts.sum(axis=1) / np.maximum(ok.sum(axis=1), 1)[:, None]
+    angle = np.where(ok, np.arctan2(pts[..., 1] - centre[:, None, 1], pts[..., 0] - centre[:, None, 0]), np.inf)
+    order = np.argsort(angle, axis=1)
+    pts, ok = np.take_along_axis(pts, order[..., None], axis=1), np.take_along_axis(ok, order, axis=1)
+    repeat = np.zeros_like(ok)
+    repeat[:, 1:] = ok[:, :-1] & (np.linalg.norm(pts[:, 1:] - pts[:, :-1], axis=-1) < 1e-9)
+    ok &= ~repeat
+    counts = ok.sum(axis=1)
+    ok &= (counts >= 3)[:, None]
+    return np.where(counts >= 3, counts, 0), pts[ok]

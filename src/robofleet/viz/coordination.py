@@ -14,13 +14,21 @@ from typing import TYPE_CHECKING
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-from matplotlib.patches import Circle, Polygon as PolygonPatch  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
+from matplotlib.patches import Circle
+from matplotlib.patches import Polygon as PolygonPatch
 
-from ..core.trace import Trace  # noqa: E402
-from ..core.workspace import Workspace  # noqa: E402
-from .animation import frame_indices, save_figure, save_gif  # noqa: E402
+from ..core.trace import Trace
+from ..core.workspace import Workspace
+from .animation import (
+    frame_indices,
+    outside_legend,
+    proxy,
+    run_title,
+    save_figure,
+    save_gif,
+)
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -56,6 +64,7 @@ def plot_fig6(summary: pd.DataFrame, path: str | Path) -> Path:
         ax.grid(alpha=0.3)
     axes[1, 1].set_ylim(-0.05, 1.05)
     axes[0, 0].legend(fontsize=8)
+    fig.suptitle("reproduce rmtrack: Fig. 6 of the label-flipping deadlock paper (X-plus-corridor map)", fontsize=11)
     fig.tight_layout()
     return save_figure(fig, path, dpi=110)
 
@@ -92,8 +101,24 @@ def plot_trace(trace: Trace, path: str | Path) -> Path:
     colors = final_colors(trace)
     for p, color in zip(trace.positions[-1], colors):
         ax.add_patch(Circle(p, radius, color=color, zorder=3))
-    ax.set_title(outcome_title(trace))
-    return save_figure(fig, path, dpi=110)
+    ax.set(xlabel="x [map units]", ylabel="y [map units]")
+    ax.set_title(f"{run_title(trace)}\n{outcome_title(trace)}", fontsize=9)
+    handles = [proxy("planned path", color="C0", ls=":"), proxy("start", color="tab:blue", marker="o", mfc="none")]
+    handles += [proxy(f"end: {name}", color=c, marker="o") for name, c in zip(("moving", "waiting", "finished", "deadlocked"),
+                                                                               ("tab:blue", "tab:orange", "tab:green", "tab:red")) if c in colors]
+    handles += _map_handles(trace)
+    outside_legend(ax, handles)
+    return save_figure(fig, path, dpi=110, tight=True)
+
+
+def _map_handles(trace: Trace) -> list:
+    """Legend entries of the map's obstacles and disturbance regions, when present."""
+    handles = []
+    if trace.workspace is not None and len(trace.workspace.obstacles):
+        handles.append(proxy("obstacle", color="0.6", marker="s", ms=9))
+    if trace.workspace is not None and trace.workspace.regions:
+        handles.append(proxy("disturbance region (p: stop probability)", color=(1, 0, 0, 0.25), marker="s", ms=9))
+    return handles
 
 
 def final_colors(trace: Trace) -> list[str]:
@@ -135,11 +160,16 @@ def animate_trace(trace: Trace, path: str | Path, max_frames: int = 150, fps: in
     radius = float(trace.metadata["radius"])
     dt = float(trace.metadata.get("dt", 1.0))
     deadlocked = {r for e in trace.events if e.get("kind") == "deadlock" for r in e.get("robots", [])}
-    fig, ax = plt.subplots(figsize=(8, 6.6))
+    fig, ax = plt.subplots(figsize=(10, 6.6))
     draw_workspace(ax, trace.workspace)
     _draw_plan(ax, trace)
+    ax.set(xlabel="x [map units]", ylabel="y [map units]")
+    outside_legend(ax, [proxy(f"robot {name}", color=c, marker="o", ms=8) for name, c in
+                        zip(("moving", "waiting", "finished", "deadlocked (last frame)"), ("tab:blue", "tab:orange", "tab:green", "tab:red"))
+                        if name != "deadlocked (last frame)" or deadlocked] + [proxy("planned path", color="C0", ls=":")] + _map_handles(trace))
+    fig.subplots_adjust(left=0.08, right=0.72)
     discs = [ax.add_patch(Circle(p, radius, color="tab:blue", zorder=3)) for p in positions[0]]
-    title = ax.set_title("")
+    title = ax.set_title("", fontsize=9)
     frames = frame_indices(len(positions), max_frames)
     last = frames[-1]
 
@@ -155,8 +185,7 @@ def animate_trace(trace: Trace, path: str | Path, max_frames: int = 150, fps: in
                 disc.set_color("tab:orange")
             else:
                 disc.set_color("tab:blue")
-        title.set_text(f"{trace.metadata.get('method', '')}  t = {t * dt:.1f} s  "
-                       f"waiting: {int(waiting[min(t, len(waiting) - 1)].sum())}")
+        title.set_text(f"{run_title(trace)}\nt = {t * dt:.1f} s · waiting: {int(waiting[min(t, len(waiting) - 1)].sum())}")
         return discs
 
     return save_gif(fig, update, frames, path, fps=fps)
@@ -167,4 +196,3 @@ def _plan_lengths(plan: np.ndarray) -> np.ndarray:
     moved = np.any(plan != plan[-1:], axis=-1)  # (K+1, n)
     last = np.where(moved.any(axis=0), plan.shape[0] - 1 - np.argmax(moved[::-1], axis=0), -1)
     return last + 1
-

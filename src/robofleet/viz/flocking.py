@@ -13,12 +13,19 @@ from pathlib import Path
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-import pandas as pd  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
+import pandas as pd
 
-from ..core.trace import Trace  # noqa: E402
-from .animation import frame_indices, save_figure, save_gif  # noqa: E402
+from ..core.trace import Trace
+from .animation import (
+    frame_indices,
+    outside_legend,
+    proxy,
+    run_title,
+    save_figure,
+    save_gif,
+)
 
 
 def plot_delta_curves(curves: pd.DataFrame, path: str | Path) -> Path:
@@ -35,17 +42,18 @@ def plot_delta_curves(curves: pd.DataFrame, path: str | Path) -> Path:
         for row, (key, label) in enumerate((("delta_e", "Δe"), ("delta_r", "Δr"))):
             ax = axes[row, col]
             table = g.pivot_table(index="t", columns="run_id", values=key)
-            q = table.quantile([0.1, 0.5, 0.9], axis=1).T.clip(lower=1e-2)
-            ax.fill_between(q.index, q[0.1], q[0.9], alpha=0.25, color="C0", lw=0, label="10-90 %")
+            q = table.quantile([0.1, 0.5, 0.9], axis=1).T
+            ax.fill_between(q.index, q[0.1], q[0.9], alpha=0.25, color="C0", lw=0, label="10-90 % of the seeds")
             ax.plot(q.index, q[0.5], color="C0", lw=1.4, label="median")
             ax.axhline(g["xi"].median(), color="k", ls="--", lw=0.8, label="ξ (median)")
-            ax.set_yscale("log")
+            ax.set_yscale("symlog", linthresh=1.0)  # logarithmic above 1 unit, linear (0 included) below: no invented floor
             ax.set_title(f"{pattern}: {label}(t)  ({table.shape[1]} seeds)", fontsize=9)
             if row == 1:
-                ax.set_xlabel("time (moves)")
+                ax.set_xlabel("time [time units]")
             if col == 0:
-                ax.set_ylabel(label)
+                ax.set_ylabel(f"{label} [units] (symlog)")
     axes[0, 0].legend(fontsize=7)
+    fig.suptitle("reproduce flocking: Fig. 11, distance to the pattern over time (basic algorithm)", fontsize=10)
     fig.tight_layout()
     return save_figure(fig, path, dpi=110)
 
@@ -61,10 +69,13 @@ def plot_trace(trace: Trace, path: str | Path, title: str | None = None) -> Path
     ax.scatter(pos[-1, 1:, 0], pos[-1, 1:, 1], color="0.2", s=14, label="followers, end")
     _leader_marker(ax, pos[-1, 0], trace.arrays["leader_heading"][-1])
     ax.set_aspect("equal")
+    ax.set(xlabel="x [units]", ylabel="y [units]")
     r = trace.results
-    ax.set_title(title or f"{trace.scenario}: Δe={r['delta_e_final']:.2f}, Δr={r['delta_r_final']:.2f}, ξ={r['xi']:.2f}", fontsize=9)
-    ax.legend(fontsize=7, loc="best")
-    return save_figure(fig, path, dpi=110)
+    ax.set_title(title or f"{run_title(trace)}\nΔe={r['delta_e_final']:.2f}, Δr={r['delta_r_final']:.2f}, ξ={r['xi']:.2f}", fontsize=9)
+    handles, _ = ax.get_legend_handles_labels()
+    outside_legend(ax, handles + [proxy("follower course (one colour each)", color="C1", ls="-", lw=0.8),
+                                  proxy("leader at the end (along its heading)", color="k", marker=">", ms=9)])
+    return save_figure(fig, path, dpi=110, tight=True)
 
 
 def plot_comparison(table: pd.DataFrame, path: str | Path) -> Path:
@@ -73,18 +84,21 @@ def plot_comparison(table: pd.DataFrame, path: str | Path) -> Path:
     table["cell"] = table["pattern"] + "/" + table["scheduler"]
     cells = list(dict.fromkeys(table["cell"]))
     algs = list(dict.fromkeys(table["algorithm"]))
-    fig, axes = plt.subplots(1, 2, figsize=(11, 3.8))
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4.2))
     width = 0.8 / len(algs)
     for k, alg in enumerate(algs):
         sub = table[table["algorithm"] == alg].set_index("cell").reindex(cells)
         x = np.arange(len(cells)) + k * width
         axes[0].bar(x, sub["Δe ≤ ξ: share"], width, label=alg)
         axes[1].bar(x, sub["slot changes (mean)"], width, label=alg)
-    for ax, label in zip(axes, ("share of runs with Δe ≤ ξ at the end", "slot changes per run (mean)")):
+    for ax, label, unit in zip(axes, ("share of runs with Δe ≤ ξ at the end", "slot changes per run (mean)"),
+                               ("share of runs", "slot changes per run")):
         ax.set_xticks(np.arange(len(cells)) + 0.4 - width / 2)
         ax.set_xticklabels(cells, rotation=30, fontsize=8)
         ax.set_title(label, fontsize=9)
-    axes[0].legend(fontsize=7)
+        ax.set(xlabel="pattern / scheduler", ylabel=unit)
+    axes[0].legend(fontsize=7, title="algorithm", title_fontsize=7)
+    fig.suptitle("reproduce flocking: variants compared", fontsize=10)
     fig.tight_layout()
     return save_figure(fig, path, dpi=110)
 
@@ -96,7 +110,11 @@ def animate_trace(trace: Trace, path: str | Path, fps: int = 15, max_frames: int
     times = trace.arrays["time"]
     frames = frame_indices(len(pos), max_frames)
     lo, hi = pos.reshape(-1, 2).min(axis=0) - 20, pos.reshape(-1, 2).max(axis=0) + 20
-    fig, ax = plt.subplots(figsize=(5.5, 5.5))
+    fig, ax = plt.subplots(figsize=(7.6, 5.5))
+    handles = [proxy("leader (along its heading)", color="k", marker=">", ms=9), proxy("follower", color="C1", marker="o", ms=6),
+               proxy(f"trail (last {tail} samples)", color="C1", ls="-", lw=0.7),
+               proxy("slot of the estimated target", color="0.5", marker="o", mfc="none", ms=8)]
+    fig.subplots_adjust(left=0.1, right=0.66)
 
     def update(k: int):
         ax.clear()
@@ -109,11 +127,13 @@ def animate_trace(trace: Trace, path: str | Path, fps: int = 15, max_frames: int
         ax.scatter(targets[k, :, 0], targets[k, :, 1], facecolors="none", edgecolors="0.5", s=40)
         ax.scatter(pos[k, 1:, 0], pos[k, 1:, 1], c=[f"C{i % 10}" for i in range(1, pos.shape[1])], s=18)
         _leader_marker(ax, pos[k, 0], trace.arrays["leader_heading"][k])
-        ax.set_title(f"t = {times[k]:.0f}   Δe = {trace.arrays['delta_e'][k]:.1f}   Δr = {trace.arrays['delta_r'][k]:.1f}", fontsize=9)
+        ax.set(xlabel="x [units]", ylabel="y [units]")
+        ax.set_title(f"{run_title(trace)}\nt = {times[k]:.0f} time units · Δe = {trace.arrays['delta_e'][k]:.1f} · "
+                     f"Δr = {trace.arrays['delta_r'][k]:.1f}", fontsize=9)
+        outside_legend(ax, handles)
 
     return save_gif(fig, update, frames, path, fps=fps)
 
 
 def _leader_marker(ax, point, heading) -> None:
     ax.plot(point[0], point[1], marker=(3, 0, np.degrees(heading) - 90), markersize=11, color="k", ls="none")
-

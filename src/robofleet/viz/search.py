@@ -13,13 +13,20 @@ from pathlib import Path
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-import pandas as pd  # noqa: E402
-from matplotlib.patches import Polygon as PolygonPatch  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
+import pandas as pd
+from matplotlib.patches import Polygon as PolygonPatch
 
-from ..core.trace import Trace  # noqa: E402
-from .animation import frame_indices, save_figure, save_gif  # noqa: E402
+from ..core.trace import Trace
+from .animation import (
+    frame_indices,
+    outside_legend,
+    proxy,
+    run_title,
+    save_figure,
+    save_gif,
+)
 
 ALGORITHM_ORDER = ("lfp", "ru", "rule1", "proposed")
 MARKERS = {"lfp": "v", "ru": "s", "rule1": "^", "proposed": "o"}
@@ -36,9 +43,9 @@ def plot_fig7(summary: pd.DataFrame, path: str | Path) -> Path:
         ax.errorbar(rows["n_robots"], rows["mean_time"], yerr=rows["ci95"], marker=MARKERS.get(alg, "o"), capsize=3,
                     label=rows["label"].iloc[0])
     ax.set_xlabel("number of robots")
-    ax.set_ylabel("mean search time (s, log scale)")
+    ax.set_ylabel("mean search time [s] (log scale)")
     ax.set_yscale("log")
-    ax.set_title("Search time, nine targets (mean ± 95 % CI)")
+    ax.set_title("reproduce search: Fig. 7, search time, nine targets (mean ± 95 % CI)", fontsize=10)
     ax.grid(alpha=0.3)
     ax.legend()
     return save_figure(fig, path, dpi=130, tight=True)
@@ -57,9 +64,9 @@ def plot_coverage_ranges(summary: pd.DataFrame, path: str | Path, columns: dict[
         xs = sorted(columns.values())
         ys = [row[c] for c, _ in sorted(columns.items(), key=lambda kv: kv[1])]
         ax.plot(xs, ys, marker="o", label=f"{grid} ({int(row['n_robots'])} robots)")
-    ax.set_xlabel("target sensing range r_st / a")
-    ax.set_ylabel("detected share of A_d")
-    ax.set_title("Coverage of the visited vertices (situation 2)")
+    ax.set_xlabel("target sensing range r_st / a [grid spacings]")
+    ax.set_ylabel("detected share of A_d [share of the area]")
+    ax.set_title("reproduce search: coverage of the visited vertices (situation 2)", fontsize=10)
     ax.grid(alpha=0.3)
     ax.legend()
     return save_figure(fig, path, dpi=130, tight=True)
@@ -76,12 +83,14 @@ def draw_area(ax: plt.Axes, trace: Trace, show_grid: bool = True) -> None:
     if show_grid and "grid_points" in md:
         pts = np.asarray(md["grid_points"], dtype=float)
         acc = np.asarray(md["accessible"], dtype=bool)
-        ax.plot(pts[acc, 0], pts[acc, 1], ".", color="0.7", markersize=3)
-        ax.plot(pts[~acc, 0], pts[~acc, 1], "x", color="0.8", markersize=3)
+        ax.plot(pts[acc, 0], pts[acc, 1], ".", color="0.7", markersize=3, label="grid vertex")
+        if (~acc).any():
+            ax.plot(pts[~acc, 0], pts[~acc, 1], "x", color="0.8", markersize=3, label="inaccessible vertex")
     targets = np.asarray(md.get("targets", []), dtype=float).reshape(-1, 2)
     if len(targets):
         ax.plot(targets[:, 0], targets[:, 1], "*", color="crimson", markersize=12, label="targets")
     ax.set_aspect("equal")
+    ax.set(xlabel="x [m]", ylabel="y [m]")
     if ws is not None:
         xmin, ymin, xmax, ymax = ws.extent
         ax.set_xlim(xmin - 0.3, xmax + 0.3)
@@ -103,9 +112,10 @@ def plot_routes(trace: Trace, path: str | Path, robots: list[int] | None = None,
                   scale=1, color=colors[r], width=0.004, alpha=0.8)
         ax.plot(p[0, 0], p[0, 1], "s", color=colors[r], markersize=9, label=f"robot {r} start")
     res = trace.results
-    ax.set_title(title or f"{trace.metadata.get('algorithm_label', '')}: {len(robots)} route(s), "
-                          f"search time {res.get('search_time', float('nan')):.1f} s")
-    ax.legend(loc="upper right", fontsize=7)
+    ax.set_title(f"{run_title(trace)}\n" + (title or f"{len(robots)} route(s), search time {res.get('search_time', float('nan')):.1f} s"),
+                 fontsize=9)
+    handles, _ = ax.get_legend_handles_labels()
+    outside_legend(ax, handles + [proxy("move (arrow along the edge)", color=colors[robots[0] if robots else 0], marker=">", ls="-", ms=5)])
     return save_figure(fig, path, dpi=130, tight=True)
 
 
@@ -118,16 +128,23 @@ def animate_trace(trace: Trace, path: str | Path, fps: int = 6, max_frames: int 
     """GIF of a search run: robots (failed ones crossed out), their trails and the visited vertices."""
     pos = trace.positions
     times = trace.arrays["time"][:, 0, 0] if "time" in trace.arrays else np.arange(len(pos), dtype=float)
-    fig, ax = plt.subplots(figsize=(6.4, 5.4))
+    fig, ax = plt.subplots(figsize=(8.6, 5.4))
     draw_area(ax, trace)
     colors = plt.cm.tab10(np.arange(pos.shape[1]) % 10)
+    handles, _ = ax.get_legend_handles_labels()
+    handles += [proxy("robot (one colour each)", color=colors[0], marker="o", ms=8), proxy("trail", color=colors[0], ls="-"),
+                proxy("visited vertex", color="tab:green", marker="o", ms=4)]
     trails = [ax.plot([], [], "-", color=c, linewidth=1.2, alpha=0.7)[0] for c in colors]
     dots = ax.scatter(pos[0, :, 0], pos[0, :, 1], s=60, c=colors, edgecolors="black", zorder=5)
     seen = ax.scatter([], [], s=14, c="tab:green", alpha=0.5, zorder=2)
-    label = ax.set_title("")
+    label = ax.set_title("", fontsize=9)
     visited_sets = _visited_until(trace)
     failed_at = {e["robot"]: e["step"] for e in trace.events if e["kind"] == "failure"}
     dead = ax.scatter([], [], s=120, marker="x", c="black", zorder=6)
+    if failed_at:
+        handles.append(proxy("failed robot", color="k", marker="x", ms=9))
+    outside_legend(ax, handles)
+    fig.subplots_adjust(left=0.08, right=0.7)
 
     def update(k: int):
         for r, line in enumerate(trails):
@@ -136,7 +153,7 @@ def animate_trace(trace: Trace, path: str | Path, fps: int = 6, max_frames: int 
         down = [r for r, step in failed_at.items() if step <= k]
         dead.set_offsets(pos[k, down] if down else np.empty((0, 2)))
         seen.set_offsets(visited_sets(k))
-        label.set_text(f"step {k}, t = {times[k]:.1f} s")
+        label.set_text(f"{run_title(trace)}\nstep {k}, t = {times[k]:.1f} s")
         return [*trails, dots, seen, dead, label]
 
     return save_gif(fig, update, frame_indices(len(pos), max_frames), path, fps=fps)
@@ -151,4 +168,3 @@ def _visited_until(trace: Trace):
         return np.unique(np.round(pts, 9), axis=0)
 
     return at
-

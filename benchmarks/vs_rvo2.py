@@ -1,0 +1,283 @@
+"""robofleet's ORCA and B-UAVC steps against RVO2's C++ ORCA (``pyrvo``), interleaved in one process.
+
+Scenario (the same for all three): N robots evenly on a circle (spacing 4 r_s), each
+heading for its antipode; r_s = 0.2 m, v_max = 0.4 m/s, Δt = 0.1 s, ORCA with 10
+neighbours within 3 m and τ = 2 s. RVO2 and robofleet's ORCA see exact positions;
+B-UAVC sees estimates with σ = 0.1 m (its cells carry the chance buffers) and runs the
+paper's one-step controller (``--liveness`` adds the default liveness rules).
+
+Each round runs ``--steps`` steps of every method from the start, in turn (RVO2, then
+robofleet's ORCA and B-UAVC for each ``--threads`` count), and keeps each run's median
+step time: RVO2's ``do_step`` (neighbour k-d tree, ORCA lines, LPs, position update);
+robofleet's per-step time as ``simulate`` records it (``step_seconds``: the whole
+team's ORCA velocities, or cells + projection + control). The ratios robofleet / RVO2 of
+the rounds are printed as min / median / max, with the growth between sizes against
+N log N (×13.3 from 1k to 10k, ×5.9 from 10k to 50k). A second table does the same on
+a dense crowd (``orca_scale.py``'s jittered grid of spacing 0.45 m, random current
+velocities, goals mirrored through the origin) where most agents need the infeasible-LP
+fallback, and prints the largest velocity difference to RVO2 after one step from the same
+state and after the 10 steps (RVO2 computes in single precision; in a dense crowd the
+two runs drift apart over the steps, as any two roundings of the same run do).
+
+Threads: robofleet's kernels run on ``numba.get_num_threads()`` threads (set
+``NUMBA_NUM_THREADS`` or pass ``--threads 1 2`` to measure both in the same run); RVO2's
+wheel is built without OpenMP (one thread).
+
+Run: ``python benchmarks/vs_rvo2.py [--sizes 1000 10000 50000] [--rounds 3] [--threads 1 2]``
+(needs ``pip install 'robofleet[bench]'`` for ``pyrvo``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import time
+from itertools import pairwise
+
+import numba
+import numpy as np
+from _machine import machine, nlogn_growth
+
+import robofleet
+from robofleet.avoidance.orca import OrcaParams, orca_velocities, preferred_velocities
+
+RADIUS, V_MAX, DT = 0.2, 0.4, 0.1
+ORCA = OrcaParams(neighbor_dist=3.0, max_neighbors=10, time_horizon=2.0)
+
+
+def circle(n: int) -> tuple[np.ndarray, np.ndarray]:
+    """Starts and antipodal goals of ``n`` robots on a circle of spacing 4 r_s."""
+    rho = max(4.0, n * 4 * RADIUS / (2 * math.pi))
+    angle = 2 * np.pi * np.arange(n) / n
+    ring = rho * np.column_stack([np.cos(angle), np.sin(angle)])
+    return ring, -ring
+
+
+def crowd(n: int, seed: int = 0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``orca_scale.py``'s dense crowd: positions, current velocities, goals."""
+    rng = np.random.default_rng(seed)
+    side = int(np.ceil(np.sqrt(n)))
+    grid = np.stack(np.meshgrid(np.arange(side), np.arange(side)), -1).reshape(-1, 2)[:n] * 0.45
+    return grid + rng.normal(size=grid.shape) * 0.02, rng.normal(size=grid.shape) * 0.1, -grid
+
+
+def scenario(n: int, steps: int, method: str, sigma: float, liveness: bool = False) -> robofleet.avoidance.Spec:
+    """The circle swap as a scenario; ``liveness`` off gives the paper's one-step
+    controller (appendix C), the step the issue's figures measured."""
+    rho = max(4.0, n * 4 * RADIUS / (2 * math.pi))
+    half = rho + 2.0
+    return robofleet.load_scenario({
+        "family": "avoidance", "name": f"circle-{n}", "method": method, "max_steps": steps, "dt": DT,
+        "workspace": {"bounds": [-half, -half, half, half]}, "record_cells": False, "orca": ORCA.model_dump(),
+        "liveness": {"enabled": liveness},
+        "robots": {"n": n, "radius": RADIUS, "v_max": V_MAX, "sigma": sigma, "layout": {"kind": "circle", "radius": rho}},
+    })
+
+
+# ---------------------------------------------------------------------------------------
+# RVO2
+# ---------------------------------------------------------------------------------------
+def rvo2_simulator(starts: np.ndarray, velocities: np.ndarray | None = None):
+    import pyrvo
+
+    sim = pyrvo.RVOSimulator(DT, ORCA.neighbor_dist, ORCA.max_neighbors, ORCA.time_horizon, ORCA.time_horizon, RADIUS, V_MAX)
+    for k, p in enumerate(starts):
+        if velocities is None:
+            sim.add_agent((float(p[0]), float(p[1])))
+        else:
+            sim.add_agent((float(p[0]), float(p[1])), ORCA.neighbor_dist, ORCA.max_neighbors, ORCA.time_horizon, ORCA.time_horizon,
+                          RADIUS, V_MAX, (float(velocities[k, 0]), float(velocities[k, 1])))
+    return sim
+
+
+def rvo2_positions(sim) -> np.ndarray:
+    return np.array([sim.get_agent_position(i).to_tuple() for i in range(sim.get_num_agents())])
+
+
+def rvo2_velocities(sim) -> np.ndarray:
+    return np.array([sim.get_agent_velocity(i).to_tuple() for i in range(sim.get_num_agents())])
+
+
+def rvo2_run(starts: np.ndarray, goals: np.ndarray, steps: int, velocities: np.ndarray | None = None) -> tuple[float, object]:
+    """Median seconds of ``do_step`` over ``steps`` steps (preferred velocities set untimed)."""
+    sim = rvo2_simulator(starts, velocities)
+    seconds = []
+    for _ in range(steps):
+        pref = preferred_velocities(rvo2_positions(sim), goals, V_MAX, DT)
+        for i, v in enumerate(pref):
+            sim.set_agent_pref_velocity(i, (float(v[0]), float(v[1])))
+        t0 = time.perf_counter()
+        sim.do_step()
+        seconds.append(time.perf_counter() - t0)
+    return float(np.median(seconds)), sim
+
+
+# ---------------------------------------------------------------------------------------
+# robofleet
+# ---------------------------------------------------------------------------------------
+def robofleet_run(spec, threads: int) -> float:
+    """Median ``step_seconds`` of one ``simulate`` run on ``threads`` numba threads."""
+    numba.set_num_threads(threads)
+    trace = robofleet.simulate(spec, seed=0)
+    return float(np.median(trace.arrays["step_seconds"]))
+
+
+def orca_crowd_run(starts, velocities, goals, steps: int, threads: int) -> tuple[float, np.ndarray]:
+    """Median seconds of robofleet's ORCA step (velocities + position update) on the crowd."""
+    numba.set_num_threads(threads)
+    pos, vel, seconds = starts.copy(), velocities.copy(), []
+    for _ in range(steps):
+        pref = preferred_velocities(pos, goals, V_MAX, DT)
+        t0 = time.perf_counter()
+        vel, _ = orca_velocities(pos, vel, pref, RADIUS, V_MAX, ORCA, DT)
+        pos = pos + vel * DT
+        seconds.append(time.perf_counter() - t0)
+    return float(np.median(seconds)), vel
+
+
+# ---------------------------------------------------------------------------------------
+# the tables
+# ---------------------------------------------------------------------------------------
+def spread(values: list[float]) -> str:
+    return f"{min(values):.2f} / {float(np.median(values)):.2f} / {max(values):.2f}"
+
+
+def circle_table(sizes, rounds, steps, threads, liveness) -> None:
+    print(f"\ncircle swap, {steps} steps per run, {rounds} rounds, B-UAVC liveness rules {'on' if liveness else 'off'};"
+          " ratio = robofleet step / RVO2 do_step (min / median / max)")
+    head = f"{'robots':>8} {'RVO2 ms':>9}"
+    for t in threads:
+        head += f" {'ORCA ms':>9} {'ORCA/RVO2 (' + str(t) + 't)':>22} {'B-UAVC ms':>10} {'B-UAVC/RVO2 (' + str(t) + 't)':>24}"
+    print(head)
+    medians: dict[str, list[float]] = {}
+    for n in sizes:
+        starts, goals = circle(n)
+        specs = {"orca": scenario(n, steps, "orca", 0.0), "buavc": scenario(n, steps, "buavc", 0.1, liveness)}
+        rvo, times = [], {(m, t): [] for m in specs for t in threads}
+        for _ in range(rounds):
+            rvo.append(rvo2_run(starts, goals, steps)[0])
+            for t in threads:
+                for m, spec in specs.items():
+                    times[m, t].append(robofleet_run(spec, t))
+        line = f"{n:>8} {np.median(rvo) * 1e3:>9.2f}"
+        medians.setdefault("RVO2", []).append(float(np.median(rvo)))
+        for t in threads:
+            for m, label in (("orca", "ORCA"), ("buavc", "B-UAVC")):
+                ratios = [a / b for a, b in zip(times[m, t], rvo)]
+                medians.setdefault(f"{label} ({t}t)", []).append(float(np.median(times[m, t])))
+                line += f" {np.median(times[m, t]) * 1e3:>9.2f} {spread(ratios):>22}" if m == "orca" else \
+                        f" {np.median(times[m, t]) * 1e3:>10.2f} {spread(ratios):>24}"
+        print(line, flush=True)
+    growth_table(sizes, medians)
+    if len(threads) > 1:
+        for m in ("ORCA", "B-UAVC"):
+            base = medians[f"{m} ({threads[0]}t)"]
+            for t in threads[1:]:
+                gains = [a / b for a, b in zip(base, medians[f"{m} ({t}t)"])]
+                print(f"{m} speed-up {threads[0]} → {t} threads: " + ", ".join(f"{n:,}: ×{g:.2f}" for n, g in zip(sizes, gains)))
+
+
+def growth_table(sizes, medians) -> None:
+    if len(sizes) < 2:
+        return
+    ref = [f"×{nlogn_growth(a, b):.1f}" for a, b in pairwise(sizes)]
+    print("growth of the median step " + ", ".join(f"{a:,} → {b:,}" for a, b in pairwise(sizes)) + f" (N log N: {', '.join(ref)})")
+    for name, values in medians.items():
+        print(f"  {name:>14}: " + ", ".join(f"×{b / a:.1f}" for a, b in pairwise(values)))
+
+
+def crowd_table(sizes, rounds, steps, threads) -> None:
+    print(f"\ndense crowd, {steps} steps per run, {rounds} rounds; ratio = robofleet ORCA step / RVO2 do_step (min / median / max)")
+    print(f"{'agents':>8} {'in fallback':>12} {'RVO2 ms':>9}" + "".join(f" {'ORCA ms':>9} {'ratio (' + str(t) + 't)':>20}" for t in threads)
+          + f" {'|Δv| 1 step':>12} {'|Δv| 10 steps':>14}")
+    for n in sizes:
+        starts, vel0, goals = crowd(n)
+        pref = preferred_velocities(starts, goals, V_MAX, DT)
+        share = float(orca_velocities(starts, vel0, pref, RADIUS, V_MAX, ORCA, DT)[1].mean())
+        one = one_step_gap(starts, vel0, goals)
+        rvo, times, gap = [], {t: [] for t in threads}, 0.0
+        for _ in range(rounds):
+            seconds, sim = rvo2_run(starts, goals, steps, vel0)
+            rvo.append(seconds)
+            for t in threads:
+                seconds, vel = orca_crowd_run(starts, vel0, goals, steps, t)
+                times[t].append(seconds)
+            gap = float(np.abs(vel - rvo2_velocities(sim)).max())
+        line = f"{n:>8} {share:>12.1%} {np.median(rvo) * 1e3:>9.2f}"
+        for t in threads:
+            line += f" {np.median(times[t]) * 1e3:>9.2f} {spread([a / b for a, b in zip(times[t], rvo)]):>20}"
+        print(line + f" {one:>12.1e} {gap:>14.1e}", flush=True)
+
+
+def one_step_gap(starts, velocities, goals) -> float:
+    """Largest velocity difference to RVO2 after one step from the same (single-precision) state."""
+    _, sim = rvo2_run(starts, goals, 1, velocities)
+    pos, vel = starts.astype(np.float32).astype(float), velocities.astype(np.float32).astype(float)
+    pref = preferred_velocities(pos, goals, V_MAX, DT).astype(np.float32).astype(float)
+    return float(np.abs(orca_velocities(pos, vel, pref, RADIUS, V_MAX, ORCA, DT)[0] - rvo2_velocities(sim)).max())
+
+
+# ---------------------------------------------------------------------------------------
+# reference trajectories for the agreement test (tests/avoidance/test_orca_rvo2.py)
+# ---------------------------------------------------------------------------------------
+def reference_cases() -> dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]]:
+    """Small cases ``name -> (starts, velocities, goals)``: a head-on pair, a square swap,
+    a circle of 8, 12 random agents, and a 6 × 6 crowd (spacing 0.45 m) where most
+    agents need the infeasible-program fallback."""
+    sq = np.array([[-1.5, -1.5], [1.5, -1.5], [1.5, 1.5], [-1.5, 1.5]]) + np.array([[0.02, 0], [0, 0.03], [-0.01, 0], [0, -0.02]])
+    ang = 2 * np.pi * np.arange(8) / 8 + 0.01 * np.arange(8)
+    ring = 2.0 * np.column_stack([np.cos(ang), np.sin(ang)])
+    rng = np.random.default_rng(3)
+    scattered = rng.uniform(-3, 3, (12, 2))
+    pos, vel, goals = crowd(36)
+    shift = pos.mean(axis=0)
+    return {
+        "head_on": (np.array([[-2.0, 0.05], [2.0, -0.05]]), np.zeros((2, 2)), np.array([[2.0, 0.05], [-2.0, -0.05]])),
+        "square_swap": (sq, np.zeros((4, 2)), -sq),
+        "circle_8": (ring, np.zeros((8, 2)), -ring),
+        "random_12": (scattered, rng.normal(size=(12, 2)) * 0.1, -scattered),
+        "crowd_36": (pos - shift, vel, goals + shift),
+    }
+
+
+def write_reference(path: str, steps: int = 10) -> None:
+    """RVO2's positions ``(steps + 1, N, 2)`` and velocities of every reference case."""
+    out = {}
+    for name, (starts, velocities, goals) in reference_cases().items():
+        sim = rvo2_simulator(starts, velocities)
+        positions, vel = [rvo2_positions(sim)], [rvo2_velocities(sim)]
+        for _ in range(steps):
+            pref = preferred_velocities(positions[-1], goals, V_MAX, DT)
+            for i, v in enumerate(pref):
+                sim.set_agent_pref_velocity(i, (float(v[0]), float(v[1])))
+            sim.do_step()
+            positions.append(rvo2_positions(sim))
+            vel.append(rvo2_velocities(sim))
+        out[f"{name}/positions"], out[f"{name}/velocities"], out[f"{name}/goals"] = np.array(positions), np.array(vel), goals
+    np.savez_compressed(path, **out)
+    print(f"wrote {path}")
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--write-reference", metavar="PATH", help="write RVO2's trajectories of the agreement test's cases and stop")
+    ap.add_argument("--sizes", type=int, nargs="+", default=[1000, 10000, 50000])
+    ap.add_argument("--crowd-sizes", type=int, nargs="*", default=[1000, 10000])
+    ap.add_argument("--rounds", type=int, default=3)
+    ap.add_argument("--steps", type=int, default=10)
+    ap.add_argument("--threads", type=int, nargs="+", default=[numba.get_num_threads()])
+    ap.add_argument("--liveness", action="store_true", help="B-UAVC with the default liveness rules (roadmap, right-hand turn, yielding)")
+    args = ap.parse_args()
+    if args.write_reference:
+        write_reference(args.write_reference)
+        return
+    print(machine())
+    robofleet.simulate(scenario(100, 3, "orca", 0.0), seed=0)  # compile (or load) the kernels once
+    robofleet.simulate(scenario(100, 3, "buavc", 0.1), seed=0)
+    circle_table(args.sizes, args.rounds, args.steps, args.threads, args.liveness)
+    if args.crowd_sizes:
+        crowd_table(args.crowd_sizes, args.rounds, args.steps, args.threads)
+
+
+if __name__ == "__main__":
+    main()

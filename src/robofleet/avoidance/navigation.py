@@ -1,0 +1,195 @@
+"""Sub-goals at visible vertices of the grown obstacles: a static visibility roadmap
+(issue 10, item 1; the "sub-goals on the cell boundary / at obstacle vertices" idea the
+issue lists, made global).
+
+The appendix-C obstacle branch (notes/buavc.md "Deadlock heuristic") sends a stuck robot
+to one vertex of the obstacle blocking it; behind a row of boxes that vertex can lead into
+the next trap. Here each robot steers, from the start, towards the next vertex of its
+shortest obstacle-free path. The obstacles are the known, static map that B-UAVC already
+assumes (their nominal positions; the ε-shadow covers their uncertainty), so this costs
+no communication and nothing about other robots: a robot uses only its own estimate, its
+goal and the map.
+
+* **Nodes** are the vertices of every obstacle grown by ``margin`` (round joins) — a little
+  more than the whole clearance the cells keep (r_s + the chance buffer + the ε-shadow),
+  so a robot can reach them — leaving out those outside the workspace bounds shrunk by
+  the same clearance and those inside another grown obstacle.
+* **Visibility**: a segment is free when it does not cross the interior of any obstacle
+  grown by ``sight_margin`` (less than ``margin``, so that the edges of a grown polygon
+  and segments grazing it count as free). Convex obstacles are tested with the
+  parametric clipping of a segment against half-planes (Cyrus & Beck 1978).
+* **Cost to go** ``D_i(v)``: Dijkstra on the visibility graph from every robot's goal,
+  once per run (:meth:`Roadmap.costs_to_goals`).
+* **Sub-goal** each step: among the nodes and the goal visible from the estimate ``p̂``,
+  the one minimising ``‖p̂ − v‖ + D_i(v)`` (the goal itself when it is visible and
+  nearest; the goal, too, when nothing is visible, e.g. with the estimate inside a
+  grown obstacle).
+
+The sub-goal only replaces the goal that the controller projects onto the cell, so every
+command still keeps the next position inside the robot's cell (the chance constraint is
+untouched).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.sparse.csgraph import dijkstra
+from shapely.geometry import Polygon
+
+_EPS = 1e-9
+
+
+@dataclass(frozen=True)
+class Halfplanes:
+    """Convex obstacles as padded half-planes ``A x ≤ b`` (``(O, K, 2)``, ``(O, K)``);
+    padding rows are ``0 · x ≤ 1`` (always true)."""
+
+    A: np.ndarray
+    b: np.ndarray
+
+
+def grown_polygons(polygons: list[np.ndarray], margin: float) -> list[np.ndarray]:
+    """Counter-clockwise vertices of each convex polygon grown by ``margin``: round joins
+    of two segments per quarter turn, so every vertex lies at exactly ``margin`` (a mitred
+    join would put the vertex of a sharp corner several margins away)."""
+    out = []
+    for p in polygons:
+        grown = Polygon(p).buffer(margin, quad_segs=2)
+        ring = np.asarray(grown.exterior.coords)[:-1]
+        area2 = np.sum(ring[:, 0] * np.roll(ring[:, 1], -1) - np.roll(ring[:, 0], -1) * ring[:, 1])
+        out.append(ring if area2 > 0 else ring[::-1])
+    return out
+
+
+def halfplanes(polygons: list[np.ndarray]) -> Halfplanes:
+    """Outward half-planes of counter-clockwise convex polygons, padded to one width."""
+    k = max((len(p) for p in polygons), default=1)
+    A = np.zeros((len(polygons), k, 2))
+    b = np.ones((len(polygons), k))
+    for o, p in enumerate(polygons):
+        edge = np.roll(p, -1, axis=0) - p
+        normal = np.column_stack([edge[:, 1], -edge[:, 0]])
+        normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), _EPS)
+        A[o, : len(p)], b[o, : len(p)] = normal, np.sum(normal * p, axis=1)
+    return Halfplanes(A, b)
+
+
+def segments_free(a: np.ndarray, b: np.ndarray, obstacles: Halfplanes) -> np.ndarray:
+    """Whether each segment ``a[s] → b[s]`` misses the interior of every obstacle
+    (``(S,)`` booleans; Cyrus–Beck clipping of ``a + t (b − a)``, ``t ∈ [0, 1]``)."""
+    if obstacles.A.shape[0] == 0:
+        return np.ones(len(a), bool)
+    d = b - a
+    na = np.einsum("okc,sc->sok", obstacles.A, a) - obstacles.b[None]  # n·a − c  (S, O, K)
+    nd = np.einsum("okc,sc->sok", obstacles.A, d)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = -na / nd
+    entering, leaving = nd < -_EPS, nd > _EPS
+    t_lo = np.max(np.where(entering, t, 0.0), axis=2)
+    t_hi = np.min(np.where(leaving, t, 1.0), axis=2)
+    outside_parallel = np.any((np.abs(nd) <= _EPS) & (na >= -_EPS), axis=2)
+    length = np.linalg.norm(d, axis=1)[:, None]
+    crosses = ~outside_parallel & ((t_hi - t_lo) * length > 1e-6)
+    return ~np.any(crosses, axis=1)
+
+
+class Roadmap:
+    """The visibility roadmap of one workspace (module docstring).
+
+    Parameters
+    ----------
+    polygons:
+        The obstacles' nominal convex polygons (each ``(V, 2)``).
+    margin:
+        How far the nodes lie from the obstacles [m].
+    bounds:
+        ``(x_min, y_min, x_max, y_max)`` of the workspace.
+    clearance:
+        How far robots stay from the obstacles and the walls [m]; segments are tested
+        against the obstacles grown by 0.9 of it.
+    """
+
+    def __init__(self, polygons: list[np.ndarray], margin: float, bounds: tuple[float, float, float, float], clearance: float):
+        grown = grown_polygons(polygons, margin)
+        self.sight = halfplanes(grown_polygons(polygons, 0.9 * clearance)) if polygons else Halfplanes(np.zeros((0, 1, 2)), np.zeros((0, 1)))
+        nodes = np.concatenate(grown) if grown else np.zeros((0, 2))
+        lo, hi = np.asarray(bounds[:2]) + clearance, np.asarray(bounds[2:]) - clearance
+        keep = np.all((nodes >= lo) & (nodes <= hi), axis=1) & ~self._inside_grown(nodes, grown)
+        self.nodes = nodes[keep]
+        self.node_edges = self._visibility(self.nodes, self.nodes)
+
+    @staticmethod
+    def _inside_grown(points: np.ndarray, grown: list[np.ndarray]) -> np.ndarray:
+        """Points strictly inside some grown obstacle (a vertex lies on its own boundary)."""
+        if not grown or len(points) == 0:
+            return np.zeros(len(points), bool)
+        planes = halfplanes(grown)
+        slack = np.einsum("okc,sc->sok", planes.A, points) - planes.b[None]
+        return np.any(np.all(slack < -1e-6, axis=2), axis=1)
+
+    def _visibility(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        """``(len(a), len(b))`` lengths of free segments, ``inf`` where blocked."""
+        if len(a) == 0 or len(b) == 0:
+            return np.full((len(a), len(b)), np.inf)
+        ia, ib = np.repeat(np.arange(len(a)), len(b)), np.tile(np.arange(len(b)), len(a))
+        free = segments_free(a[ia], b[ib], self.sight)
+        length = np.linalg.norm(a[ia] - b[ib], axis=1)
+        return np.where(free, length, np.inf).reshape(len(a), len(b))
+
+    def costs_to_goals(self, goals: np.ndarray) -> np.ndarray:
+        """``D[i, v]``: length of the shortest free path from node ``v`` to goal ``i``
+        (``inf`` if none); Dijkstra over nodes plus that goal."""
+        n_nodes = len(self.nodes)
+        costs = np.full((len(goals), n_nodes), np.inf)
+        if n_nodes == 0:
+            return costs
+        to_goal = self._visibility(self.nodes, goals)  # (V, N)
+        for i in range(len(goals)):
+            graph = np.full((n_nodes + 1, n_nodes + 1), np.inf)
+            graph[:n_nodes, :n_nodes] = self.node_edges
+            graph[:n_nodes, n_nodes] = graph[n_nodes, :n_nodes] = to_goal[:, i]
+            np.fill_diagonal(graph, np.inf)
+            dense = np.where(np.isfinite(graph), np.maximum(graph, _EPS), 0.0)
+            costs[i] = dijkstra(dense, directed=False, indices=n_nodes)[:n_nodes]
+        return costs
+
+    def subgoals(self, estimates: np.ndarray, goals: np.ndarray, costs: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Each robot's sub-goal ``(N, 2)`` — the visible node or goal minimising
+        ``‖p̂ − v‖ + D_i(v)`` (module docstring) —, the path length ``D_i`` left after it
+        (0 for the goal) and whether anything was visible at all."""
+        n, n_nodes = len(estimates), len(self.nodes)
+        goal_free = segments_free(estimates, goals, self.sight)
+        if n_nodes == 0:
+            return goals.copy(), np.zeros(n), np.ones(n, bool)
+        ia = np.repeat(np.arange(n), n_nodes)
+        free = segments_free(estimates[ia], np.tile(self.nodes, (n, 1)), self.sight).reshape(n, n_nodes)
+        total = np.where(free, np.linalg.norm(estimates[:, None] - self.nodes[None], axis=2) + costs, np.inf)
+        best = np.argmin(total, axis=1)
+        found = np.isfinite(total[np.arange(n), best])
+        use_node = ~goal_free & found
+        sub = np.where(use_node[:, None], self.nodes[best], goals)
+        return sub, np.where(use_node, costs[np.arange(n), best], 0.0), goal_free | found
+
+
+class Navigation:
+    """One team's use of the roadmap: its goals' costs to go, computed once.
+
+    :meth:`step` returns each robot's sub-goal and its estimated remaining path length
+    ``‖p̂ − v‖ + D_i(v)`` (the straight distance when the goal is visible), the progress
+    measure the deadlock detection uses instead of the straight distance to the goal.
+    """
+
+    def __init__(self, roadmap: Roadmap, goals: np.ndarray):
+        self.roadmap, self.goals = roadmap, goals
+        self.costs = roadmap.costs_to_goals(goals)
+        self.last = goals.copy(), np.zeros(len(goals))
+
+    def step(self, estimates: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Sub-goals and remaining path lengths; a robot that sees nothing (its estimate
+        inside a grown obstacle) keeps its previous sub-goal."""
+        sub, rest, seen = self.roadmap.subgoals(estimates, self.goals, self.costs)
+        sub, rest = np.where(seen[:, None], sub, self.last[0]), np.where(seen, rest, self.last[1])
+        self.last = sub, rest
+        return sub, np.linalg.norm(sub - estimates, axis=1) + rest

@@ -1,0 +1,484 @@
+"""B-UAVC as a safety filter for velocities from any source (a planner, a learned policy,
+a joystick): Zhu, Brito & Alonso-Mora 2022, Sec. 4 (the cell), used as a one-step filter.
+
+What it computes (single integrator ``p⁺ = p + u Δt``)
+    For robot ``i`` with estimate ``p̂_i``, covariance ``Σ_i`` and desired velocity
+    ``u_des``, the B-UAVC ``V_i`` is built from the current estimates (Eq. 13 with the
+    separators of appendix B, the buffers ``β`` and the ε-shadows of appendix A; only
+    neighbours and obstacles inside ``p̂_i ± R_loc``). The filter returns
+
+        ``u = (Π_Vi(p̂_i + sat(u_des) Δt) − p̂_i) / Δt``,  ``sat(u) = u · min(1, v_max / ‖u‖)``,
+
+    i.e. the velocity closest to ``sat(u_des)`` among those whose next estimate
+    ``p̂_i + u Δt`` lies in ``V_i`` (exact projection onto the convex cell,
+    :func:`~.projection.project_onto_cells`). Projection onto a convex set is
+    non-expansive and fixes ``p̂_i ∈ V_i``, so ``‖u‖ ≤ ‖sat(u_des)‖ ≤ v_max``: the speed
+    limit needs no second step, and ``u = sat(u_des)`` whenever that already keeps the
+    robot in its cell (minimal intervention). The straight step from ``p̂_i`` to
+    ``p̂_i + u Δt`` stays in ``V_i`` (convexity).
+
+The guarantee (Sec. 4), and what it assumes
+    If (1) every robot's true position is ``N(p̂_i, Σ_i)`` with the ``Σ_i`` given, the
+    errors of different robots independent; (2) every robot filters with the same
+    estimates of its neighbours (reciprocity of the separators, appendix B) and the
+    same ``δ``, ``r_s`` and ``R_loc``; (3) the obstacles are convex polygons displaced by
+    ``N(0, Σ_o)``; (4) the estimate lies in its own cell when the cell is built
+    (``estimate_in_cell``); (5) the robot executes ``u`` as a single integrator for ``Δt``
+    (its next estimate is ``p̂_i + u Δt`` with the same ``Σ_i``) — then, at the next step,
+    each pair of robots inside each other's local box is closer than ``2 r_s`` with
+    probability at most ``δ``, and each robot is within ``r_s`` of an obstacle with
+    probability at most ``δ``. It is a bound per pair and per step, not per run; it says
+    nothing about robots outside ``R_loc`` of each other that come within ``2 r_s`` in one
+    step (choose ``R_loc ≥ 2 r_s + 2 v_max Δt`` plus a few σ); it covers no deadlock.
+
+When the premise fails (documented choices)
+    * Estimate outside its own cell (noise, or a neighbour closer than the buffers): the
+      filter heads for ``Π_Vi(p̂_i + sat(u_des) Δt)``, the cell point it would have gone to,
+      at speed at most ``v_max`` (the step is shortened along the same direction). The
+      distance of the next estimate to the cell then shrinks (distance to a convex set
+      is convex along the segment and 0 at its end), but the bound does not apply to
+      that step. ``estimate_in_cell`` is ``False``.
+    * Empty cell (the constraints exclude every point): the filter returns ``u = 0`` (the
+      robot holds still; nothing better is safe by the cell) and ``empty`` is ``True``.
+
+Robot models
+    The filter is exact for **single integrators** (velocity-controlled holonomic robots)
+    in 2-D. A differential-drive or double-integrator robot may track ``u`` with its own
+    low-level controller, but then the step is no longer a straight segment of length
+    ``‖u‖ Δt`` and the guarantee does not carry over; for those models use the closed
+    loops of :mod:`robofleet.avoidance.simulation` (three projections, Sec. 5.3; the braking rule, Sec. 5.2;
+    the MPC, Sec. 5.4). 3-D cells are not filtered here.
+
+Deadlock memory (appendix C, in velocity form)
+    A filter cannot know the robot's goal, so progress is measured against what was
+    asked: over the last ``window`` steps a robot is *deadlocked* when it asked for at
+    least ``progress_fraction · v_max · window · Δt`` of motion and moved less than
+    ``progress_fraction`` of it along the directions it asked for, or when it asked to
+    move and the filter returned ``u = 0`` in a non-empty cell (it sits on the boundary).
+    Recovery rotates the desired velocity clockwise by 90° (``R_z(−90°)``, the paper's
+    goal rotation ``g_tmp = R_z(−90°)(g − p̂) + p̂`` written for a velocity) for
+    ``recover_steps`` steps. The obstacle-vertex branch of appendix C needs the goal and
+    is not applied. :class:`SafetyFilter` keeps no memory unless given ``deadlock``;
+    :class:`RobotSafetyFilter` keeps its own robot's memory by default.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from ..core.errors import ConfigError, short_repr
+from ..core.spec_blocks import is_convex
+from .cell import CellGeometry, Cells, cell_from_view
+from .controller import DeadlockParams
+from .obstacles import wall_planes
+from .projection import project_onto_cells
+from .separator import as_float_array, check_covariance
+from .simulation import CellModel, cell_model, method_setup, obstacle_set, shifted
+from .spec import Spec
+
+_CLOCKWISE_90 = np.array([[0.0, 1.0], [-1.0, 0.0]])  # R_z(−90°), as in appendix C
+DEFAULT_DEADLOCK = DeadlockParams()
+"""The deadlock memory a :class:`RobotSafetyFilter` keeps by default (appendix C's parameters of the controller)."""
+
+
+@dataclass(frozen=True)
+class FilterResult:
+    """What one call of a safety filter returns (one row per robot).
+
+    velocity: ``(N, 2)`` the filtered velocities.
+    desired: ``(N, 2)`` the desired velocities after the speed limit (and, while a robot
+    recovers from a deadlock, rotated by −90°): what was projected.
+    modified: ``(N,)`` the filter changed the desired velocity (beyond 1e-12 m/s).
+    estimate_in_cell: ``(N,)`` the estimate lay in its own cell (premise of the bound).
+    empty: ``(N,)`` the cell was empty (the velocity is zero).
+    deadlocked: ``(N,)`` a deadlock was detected at this call (a recovery starts).
+    recovering: ``(N,)`` the desired velocity was rotated by the deadlock recovery.
+    cells: the cells the velocities were filtered with.
+    """
+
+    velocity: np.ndarray
+    desired: np.ndarray
+    modified: np.ndarray
+    estimate_in_cell: np.ndarray
+    empty: np.ndarray
+    deadlocked: np.ndarray
+    recovering: np.ndarray
+    cells: Cells
+
+
+# ---------------------------------------------------------------------------------------
+# the filter itself (pure, vectorized)
+# ---------------------------------------------------------------------------------------
+def saturate(velocity: np.ndarray, v_max: np.ndarray) -> np.ndarray:
+    """``u · min(1, v_max / ‖u‖)`` per row: the speed limit."""
+    speed = np.linalg.norm(velocity, axis=1)
+    scale = np.minimum(1.0, v_max / np.maximum(speed, 1e-300))
+    return velocity * scale[:, None]
+
+
+def safe_velocities(estimates: np.ndarray, desired: np.ndarray, cells: Cells, v_max: np.ndarray,
+                    dt: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The B-UAVC filter (see the module docstring): ``(velocity, estimate_in_cell, empty)``.
+
+    ``u = (Π_V(p̂ + sat(u_des) Δt) − p̂)/Δt``, shortened to ``v_max`` when ``p̂ ∉ V``; zero
+    for an empty cell. O(N · V · M²) for M constraints of which V are violated.
+    """
+    wanted = saturate(desired, v_max)
+    query = estimates + wanted * dt
+    proj = project_onto_cells(query, cells)
+    inside = cells.contains(estimates)
+    target = np.where(proj.empty[:, None], estimates, proj.point)
+    velocity = saturate((target - estimates) / dt, v_max)
+    kept = np.all(proj.point == query, axis=1)  # already in the cell: exactly the desired velocity
+    return np.where(kept[:, None], wanted, velocity), inside, proj.empty
+
+
+# ---------------------------------------------------------------------------------------
+# deadlock memory (appendix C, velocity form)
+# ---------------------------------------------------------------------------------------
+@dataclass
+class DeadlockMemory:
+    """Per-robot memory of the deadlock heuristic: rings of asked and achieved motion."""
+
+    params: DeadlockParams
+    asked: np.ndarray
+    made: np.ndarray
+    recover_left: np.ndarray
+    deadlocks: np.ndarray
+    step: int = 0
+
+    @classmethod
+    def initial(cls, params: DeadlockParams, n: int) -> DeadlockMemory:
+        window = max(params.window, 1)
+        return cls(params, np.full((window, n), np.nan), np.full((window, n), np.nan), np.zeros(n, np.int64), np.zeros(n, np.int64))
+
+    def steer(self, desired: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The desired velocities to project: rotated by −90° for robots in recovery."""
+        recovering = self.recover_left > 0
+        steered = desired.copy()
+        steered[recovering] = desired[recovering] @ _CLOCKWISE_90.T
+        return steered, recovering
+
+    def update(self, asked: np.ndarray, velocity: np.ndarray, empty: np.ndarray, v_max: np.ndarray, dt: float) -> np.ndarray:
+        """Record one step (``asked``: the projected desired velocities) and return the
+        robots newly detected in deadlock, whose recovery starts now."""
+        p = self.params
+        asked_len = np.linalg.norm(asked, axis=1) * dt
+        along = np.einsum("ij,ij->i", velocity, asked) * dt / np.maximum(asked_len / dt, 1e-300)
+        slot = self.step % len(self.asked)
+        self.asked[slot], self.made[slot] = asked_len, along
+        self.step += 1
+        normal = self.recover_left <= 0
+        self.recover_left = np.maximum(self.recover_left - 1, 0)
+        full = np.all(np.isfinite(self.asked), axis=0)
+        total_asked, total_made = np.nansum(self.asked, axis=0), np.nansum(self.made, axis=0)
+        slow = full & (total_asked >= p.progress_fraction * v_max * len(self.asked) * dt) & (total_made < p.progress_fraction * total_asked)
+        sitting = (asked_len > 1e-9) & (np.linalg.norm(velocity, axis=1) * dt < 1e-9) & ~empty
+        stuck = (slow | sitting) & normal
+        self.asked[:, stuck], self.made[:, stuck] = np.nan, np.nan
+        self.recover_left[stuck] = p.recover_steps
+        self.deadlocks += stuck
+        return stuck
+
+
+# ---------------------------------------------------------------------------------------
+# input checking
+# ---------------------------------------------------------------------------------------
+def positive(value: object, name: str) -> float:
+    """``value`` as a finite float ``> 0``, or a :class:`ConfigError` naming ``name``."""
+    try:
+        number = float(value)
+    except (TypeError, ValueError):
+        raise ConfigError(f"{name}: expected a number > 0, received {short_repr(value)}") from None
+    if not np.isfinite(number) or number <= 0:
+        raise ConfigError(f"{name}: expected a finite number > 0, received {short_repr(value)}")
+    return number
+
+
+def per_robot_positive(value: object, name: str, n: int) -> np.ndarray:
+    """A number or ``(n,)`` numbers, each finite and ``> 0``, as an ``(n,)`` array."""
+    array = as_float_array(value, name)
+    if array.ndim > 1 or (array.ndim == 1 and len(array) != n):
+        raise ConfigError(f"{name}: expected a number or {n} numbers (one per robot), received shape {array.shape}")
+    if np.any(array <= 0):
+        raise ConfigError(f"{name}: expected numbers > 0, received {short_repr(array.tolist())}")
+    return np.broadcast_to(array, (n,)).astype(float)
+
+
+def points(value: object, name: str, n: int | None = None) -> np.ndarray:
+    """``(n, 2)`` finite numbers (any ``n`` when ``n`` is None)."""
+    array = as_float_array(value, name)
+    if array.ndim != 2 or array.shape[1] != 2 or (n is not None and len(array) != n):
+        expected = f"({n}, 2)" if n is not None else "(N, 2)"
+        raise ConfigError(f"{name}: expected an array shaped {expected}, received shape {array.shape}")
+    return array
+
+
+def point(value: object, name: str) -> np.ndarray:
+    """One finite point ``(2,)``, returned as a ``(1, 2)`` row."""
+    array = as_float_array(value, name)
+    if array.shape != (2,):
+        raise ConfigError(f"{name}: expected an array shaped (2,), received shape {array.shape}")
+    return array[None]
+
+
+def covariances(value: object, name: str, n: int) -> np.ndarray:
+    """``(2, 2)`` (shared) or ``(n, 2, 2)`` symmetric PSD matrices, as ``(n, 2, 2)``."""
+    array = as_float_array(value, name)
+    if array.shape not in ((2, 2), (n, 2, 2)):
+        raise ConfigError(f"{name}: expected an array shaped (2, 2) or ({n}, 2, 2), received shape {array.shape}")
+    check_covariance(array, name)
+    return np.broadcast_to(array, (n, 2, 2))
+
+
+def obstacle_offsets(value: object, count: int) -> np.ndarray:
+    """The obstacles' estimated displacements ``(O, 2)`` (zeros when ``None``)."""
+    if value is None:
+        return np.zeros((count, 2))
+    return points(value, "obstacle_offsets", count)
+
+
+def cell_geometry(bounds: object, obstacles: Sequence, obstacle_cov: object, delta: float) -> CellGeometry:
+    """Walls and obstacles (with their ε-shadows under ``Σ_o``, appendix A) of the cells."""
+    polygons = [points(o, f"obstacles[{k}]") for k, o in enumerate(obstacles)]
+    for k, polygon in enumerate(polygons):
+        if len(polygon) < 3 or not is_convex(polygon):
+            raise ConfigError(f"obstacles[{k}]: expected a convex polygon of at least 3 vertices, received {short_repr(polygon.tolist())}")
+    cov = covariances(np.zeros((2, 2)) if obstacle_cov is None else obstacle_cov, "obstacle_cov", 1)[0]
+    obstacle_set_ = obstacle_set(polygons, cov, method_setup("buavc", delta, 0.0))
+    wall_a, wall_b = wall_planes(bounds_polygon(bounds)) if bounds is not None else (np.zeros((0, 2)), np.zeros(0))
+    return CellGeometry(obstacle_set_, wall_a, wall_b)
+
+
+def bounds_polygon(bounds: object) -> np.ndarray:
+    """``(xmin, ymin, xmax, ymax)`` or a convex polygon ``(V, 2)`` as polygon vertices."""
+    array = as_float_array(bounds, "bounds")
+    if array.shape == (4,) and array[0] < array[2] and array[1] < array[3]:
+        x0, y0, x1, y1 = array
+        return np.array([[x0, y0], [x1, y0], [x1, y1], [x0, y1]])
+    if array.ndim == 2 and array.shape[1] == 2 and len(array) >= 3 and is_convex(array):
+        return array
+    raise ConfigError(f"bounds: expected (xmin, ymin, xmax, ymax) with xmin < xmax, ymin < ymax, or a convex polygon (V, 2), "
+                      f"received {short_repr(array.tolist())}")
+
+
+def single_integrator_spec(spec: Spec) -> Spec:
+    """``spec`` if every team is a 2-D single integrator, else a :class:`ConfigError`."""
+    kinds = sorted({t.model.kind for t in spec.team_specs()})
+    if spec.dim != 2 or kinds != ["single_integrator"]:
+        raise ConfigError(f"scenario: expected a 2-D scenario of single-integrator robots (the filter's model), "
+                          f"received dimension {spec.dim} with models {kinds}")
+    return spec
+
+
+# ---------------------------------------------------------------------------------------
+# the two faces: batched over a fleet, and one robot's own
+# ---------------------------------------------------------------------------------------
+@dataclass
+class SafetyFilter:
+    """B-UAVC safety filter for a fleet of ``n`` single-integrator robots, batched and
+    vectorized over the robots (see the module docstring for the guarantee).
+
+    Build it with :meth:`create` (geometry given directly) or :meth:`from_spec` (an
+    avoidance scenario), then call :meth:`filter` every control step with the current
+    estimates, covariances and desired velocities of all ``n`` robots.
+
+    Attributes
+    ----------
+    model: the cell ingredients (radii, buffer quantile, walls, obstacles, ``R_loc``).
+    v_max: ``(n,)`` speed limits.
+    dt: control step Δt.
+    memory: the deadlock memory (``None``: stateless, the same input gives the same output).
+    """
+
+    model: CellModel
+    v_max: np.ndarray
+    dt: float
+    memory: DeadlockMemory | None = field(default=None)
+
+    @property
+    def n(self) -> int:
+        return len(self.v_max)
+
+    @classmethod
+    def create(cls, n: int, *, radius: float | Sequence[float], dt: float, v_max: float | Sequence[float], delta: float = 0.1,
+               bounds: object = None, obstacles: Sequence = (), obstacle_cov: object = None, local_box: float = 2.0,
+               deadlock: DeadlockParams | None = None) -> SafetyFilter:
+        """A filter for ``n`` robots.
+
+        Parameters
+        ----------
+        radius, v_max: the safety radius r_s and the speed limit, one value or one per robot.
+        dt: the control step Δt [s].
+        delta: the collision threshold δ ∈ (0, 1) of the chance constraint.
+        bounds: the workspace, ``(xmin, ymin, xmax, ymax)`` or a convex polygon; ``None``: no walls.
+        obstacles: convex polygons ``(V_k, 2)`` at their nominal positions.
+        obstacle_cov: ``Σ_o`` ``(2, 2)`` of the obstacles' positions (``None``: known exactly).
+        local_box: R_loc, half-width of the box around each estimate that is considered.
+        deadlock: parameters of the deadlock memory (appendix C); ``None`` keeps none.
+        """
+        if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
+            raise ConfigError(f"n: expected a positive integer number of robots, received {short_repr(n)}")
+        quantile = method_setup("buavc", delta, 0.0).quantile
+        geometry = cell_geometry(bounds, obstacles, obstacle_cov, delta)
+        model = CellModel(np.zeros((n, 2, 2)), per_robot_positive(radius, "radius", n), quantile, geometry, positive(local_box, "local_box"))
+        return cls._with_memory(model, per_robot_positive(v_max, "v_max", n), positive(dt, "dt"), deadlock)
+
+    @classmethod
+    def from_spec(cls, spec: Spec, deadlock: DeadlockParams | None = None) -> SafetyFilter:
+        """The filter of an avoidance scenario's robots: its r_s, v_max per team, δ,
+        Δt, R_loc, walls and obstacles with their ε-shadows (always as B-UAVC, whatever the
+        scenario's ``method``). The scenario's Σ are the default covariances
+        (:meth:`covariances`), but every call passes its own."""
+        spec = single_integrator_spec(spec)
+        model = cell_model(spec, method_setup("buavc", spec.delta, 0.0))
+        v_max = np.concatenate([np.full(t.n, t.v_max) for t in spec.team_specs()])
+        return cls._with_memory(model, v_max, float(spec.dt), deadlock)
+
+    @classmethod
+    def _with_memory(cls, model: CellModel, v_max: np.ndarray, dt: float, deadlock: DeadlockParams | None) -> SafetyFilter:
+        memory = DeadlockMemory.initial(deadlock, len(v_max)) if deadlock is not None and deadlock.enabled else None
+        return cls(model, v_max, dt, memory)
+
+    @property
+    def covariances(self) -> np.ndarray:
+        """The covariances the filter was built with (the scenario's Σ; zeros from :meth:`create`)."""
+        return self.model.covs
+
+    @property
+    def obstacle_count(self) -> int:
+        return self.model.geometry.obstacles.count
+
+    def reset(self) -> None:
+        """Forget the deadlock memory (a new episode)."""
+        if self.memory is not None:
+            self.memory = DeadlockMemory.initial(self.memory.params, self.n)
+
+    def cells(self, estimates: np.ndarray, covs: np.ndarray, offsets: np.ndarray | None = None) -> Cells:
+        """Every robot's B-UAVC from the estimates ``(n, 2)`` and covariances ``(n, 2, 2)``."""
+        model = replace(self.model, covs=covs)
+        return model.cells(estimates, obstacle_offsets(offsets, self.obstacle_count))
+
+    def filter(self, estimates: object, covs: object, desired: object, obstacle_offsets: object = None) -> FilterResult:
+        """Filter the desired velocities of all robots for one step.
+
+        Parameters
+        ----------
+        estimates: ``(n, 2)`` position estimates p̂.
+        covs: ``(2, 2)`` shared or ``(n, 2, 2)`` covariances Σ of the estimates.
+        desired: ``(n, 2)`` desired velocities (any source).
+        obstacle_offsets: ``(O, 2)`` estimated displacements of the obstacles from their
+            nominal positions (``None``: at their nominal positions).
+        """
+        p = distinct(points(estimates, "estimates", self.n), "estimates")
+        cov = covariances(covs, "covs", self.n)
+        wanted = points(desired, "desired", self.n)
+        cells = self.cells(p, cov, obstacle_offsets)
+        return filtered(p, wanted, cells, self.v_max, self.dt, self.memory)
+
+
+def distinct(points_: np.ndarray, name: str) -> np.ndarray:
+    """``points_`` if no two rows are equal (no separator exists between equal estimates)."""
+    _, first, counts = np.unique(points_, axis=0, return_index=True, return_counts=True)
+    if np.any(counts > 1):
+        raise ConfigError(f"{name}: expected distinct positions (no separator exists between equal estimates), "
+                          f"received equal rows at {points_[first[counts > 1][0]].tolist()}")
+    return points_
+
+
+def filtered(p: np.ndarray, desired: np.ndarray, cells: Cells, v_max: np.ndarray, dt: float, memory: DeadlockMemory | None) -> FilterResult:
+    """Limit the speed, steer (deadlock recovery), filter and remember one step."""
+    if not np.all(np.isfinite(cells.b)):
+        raise ConfigError(f"estimates: expected cells of finite constraints, received non-finite ones for robot(s) "
+                          f"{np.flatnonzero(~np.all(np.isfinite(cells.b), axis=1))[:6].tolist()}")
+    wanted = saturate(desired, v_max)
+    steered, recovering = (wanted, np.zeros(len(p), bool)) if memory is None else memory.steer(wanted)
+    velocity, inside, empty = safe_velocities(p, steered, cells, v_max, dt)
+    stuck = np.zeros(len(p), bool) if memory is None else memory.update(steered, velocity, empty, v_max, dt)
+    modified = np.linalg.norm(velocity - desired, axis=1) > 1e-12
+    return FilterResult(velocity, steered, modified, inside, empty, stuck, recovering, cells)
+
+
+@dataclass
+class RobotSafetyFilter:
+    """One robot's B-UAVC safety filter, fed only what that robot sees: its own estimate
+    and covariance, its neighbours' estimates and covariances (those outside ``R_loc`` are
+    ignored, as in the batch filter), and the obstacles. It keeps its own deadlock memory.
+
+    The cell is built by :func:`~.cell.cell_from_view`, the reference the batch builder is
+    tested against, so a robot filtering alone gets the velocity :class:`SafetyFilter`
+    computes for it from the same estimates (the tests check it). The typical use is one
+    instance per robot process, e.g. inside a ROS 2 node (see the docs' integration page).
+    """
+
+    radius: float
+    v_max: float
+    dt: float
+    quantile: float
+    geometry: CellGeometry
+    local_box: float
+    memory: DeadlockMemory | None
+
+    @classmethod
+    def create(cls, *, radius: float, dt: float, v_max: float, delta: float = 0.1, bounds: object = None, obstacles: Sequence = (),
+               obstacle_cov: object = None, local_box: float = 2.0,
+               deadlock: DeadlockParams | None = DEFAULT_DEADLOCK) -> RobotSafetyFilter:
+        """A robot's filter; parameters as in :meth:`SafetyFilter.create` (one robot; the
+        deadlock memory is on by default, ``deadlock=None`` turns it off)."""
+        quantile = method_setup("buavc", delta, 0.0).quantile
+        memory = DeadlockMemory.initial(deadlock, 1) if deadlock is not None and deadlock.enabled else None
+        return cls(positive(radius, "radius"), positive(v_max, "v_max"), positive(dt, "dt"), quantile,
+                   cell_geometry(bounds, obstacles, obstacle_cov, delta), positive(local_box, "local_box"), memory)
+
+    @classmethod
+    def from_spec(cls, spec: Spec, robot: int = 0, deadlock: DeadlockParams | None = DEFAULT_DEADLOCK) -> RobotSafetyFilter:
+        """Robot ``robot``'s filter in an avoidance scenario (its team's v_max)."""
+        fleet = SafetyFilter.from_spec(spec)
+        if isinstance(robot, bool) or not isinstance(robot, (int, np.integer)) or not 0 <= robot < fleet.n:
+            raise ConfigError(f"robot: expected an index in 0..{fleet.n - 1}, received {short_repr(robot)}")
+        m = fleet.model
+        memory = DeadlockMemory.initial(deadlock, 1) if deadlock is not None and deadlock.enabled else None
+        return cls(float(m.radius[robot]), float(fleet.v_max[robot]), fleet.dt, m.quantile, m.geometry, m.local_box, memory)
+
+    def reset(self) -> None:
+        """Forget the deadlock memory."""
+        if self.memory is not None:
+            self.memory = DeadlockMemory.initial(self.memory.params, 1)
+
+    def cell(self, estimate: np.ndarray, cov: np.ndarray, neighbours: np.ndarray, neighbour_covs: np.ndarray,
+             offsets: object = None) -> Cells:
+        """This robot's B-UAVC from its local view, as a one-robot :class:`~.cell.Cells`."""
+        geometry = replace(self.geometry, obstacles=shifted(self.geometry.obstacles, obstacle_offsets(offsets, self.geometry.obstacles.count)))
+        A, b, kind = cell_from_view(estimate, cov, self.radius, neighbours, neighbour_covs, self.quantile, geometry, self.local_box)
+        m = max(len(b), 1)
+        cells = Cells(np.zeros((1, m, 2)), np.ones((1, m)), np.zeros((1, m), bool), np.full((1, m), -1, np.int8), np.full((1, m), -1, np.intp))
+        cells.A[0, : len(b)], cells.b[0, : len(b)], cells.valid[0, : len(b)], cells.kind[0, : len(b)] = A, b, True, kind
+        return cells
+
+    def filter(self, estimate: object, covariance: object, desired: object, neighbour_estimates: object = (),
+               neighbour_covariances: object = None, obstacle_offsets: object = None) -> FilterResult:
+        """Filter this robot's desired velocity ``(2,)`` for one step.
+
+        Parameters
+        ----------
+        estimate, covariance: the robot's own p̂ ``(2,)`` and Σ ``(2, 2)``.
+        desired: the desired velocity ``(2,)``.
+        neighbour_estimates: ``(K, 2)`` the estimates its neighbours report (any K ≥ 0).
+        neighbour_covariances: ``(2, 2)`` shared or ``(K, 2, 2)``; ``None``: the robot's own Σ.
+        obstacle_offsets: ``(O, 2)`` estimated displacements of the obstacles.
+
+        Returns
+        -------
+        FilterResult
+            One row: ``result.velocity[0]`` is the velocity to apply.
+        """
+        p = point(estimate, "estimate")
+        cov = covariances(covariance, "covariance", 1)
+        nb = np.zeros((0, 2)) if np.size(neighbour_estimates) == 0 else points(neighbour_estimates, "neighbour_estimates")
+        distinct(np.concatenate([p, nb]), "neighbour_estimates")
+        ncov = covariances(cov[0] if neighbour_covariances is None else neighbour_covariances, "neighbour_covariances", len(nb))
+        cells = self.cell(p[0], cov[0], nb, ncov, obstacle_offsets)
+        return filtered(p, point(desired, "desired"), cells, np.array([self.v_max]), self.dt, self.memory)

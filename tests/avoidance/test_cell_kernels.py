@@ -1,0 +1,118 @@
+"""The compiled cell builder and neighbour search: same cells as the pairwise form, same
+neighbours as a k-d tree / brute force, same results on any number of threads."""
+
+import numba
+import numpy as np
+import pytest
+from scipy.spatial import cKDTree
+
+from robofleet.avoidance import kernels
+from robofleet.avoidance.cell import (
+    CellGeometry,
+    _obstacle_rows,
+    _pad,
+    _robot_rows,
+    _wall_rows,
+    build_cells,
+    neighbour_pairs,
+)
+from robofleet.avoidance.neighbours import box_neighbours, nearest_neighbours
+from robofleet.avoidance.obstacles import ObstacleSet, wall_planes
+from robofleet.avoidance.projection import project_onto_cells
+from robofleet.core.errors import ConfigError
+
+
+def geometry_with_obstacles() -> CellGeometry:
+    boxes = [np.array([[-1.0, -1.0], [0.0, -1.0], [0.0, 0.0], [-1.0, 0.0]]), np.array([[2.0, 2.0], [3.0, 2.5], [2.2, 3.0]])]
+    obstacles = ObstacleSet.build(boxes, np.repeat((0.05**2 * np.eye(2))[None], 2, 0), 0.05)
+    return CellGeometry(obstacles, *wall_planes(np.array([[-6.0, -6.0], [6.0, -6.0], [6.0, 6.0], [-6.0, 6.0]])))
+
+
+def row_sets(cells):
+    """Each robot's valid rows as a sorted list (row order is not part of a cell)."""
+    return [sorted(zip(cells.kind[i][cells.valid[i]].tolist(), cells.source[i][cells.valid[i]].tolist(),
+                       map(tuple, cells.A[i][cells.valid[i]].tolist()), cells.b[i][cells.valid[i]].tolist())) for i in range(len(cells.A))]
+
+
+@pytest.mark.parametrize("cov", [0.1**2 * np.eye(2), np.diag([0.02, 0.004]), np.array([[0.02, 0.006], [0.006, 0.01]]), np.zeros((2, 2))])
+def test_shared_covariance_kernel_builds_the_pairwise_cells(cov):
+    """The per-robot kernel gives every robot the rows the pair-once form gives it: the
+    separator of each pair, its negation for the other robot, obstacles and walls."""
+    rng = np.random.default_rng(4)
+    p = rng.uniform(-5.5, 5.5, (150, 2))
+    covs, radius, geo = np.broadcast_to(cov, (150, 2, 2)), rng.uniform(0.1, 0.3, 150), geometry_with_obstacles()
+    fast = build_cells(p, covs, radius, 1.63, geo, 2.0)
+    parts = [_robot_rows(p, covs, radius, 1.63, neighbour_pairs(p, 2.0)), _obstacle_rows(p, covs, radius, 1.63, geo.obstacles, 2.0),
+             _wall_rows(p, covs, radius, 1.63, geo, 2.0)]
+    slow = _pad(150, 2, parts)
+    assert fast.A.shape == slow.A.shape
+    for got, want in zip(row_sets(fast), row_sets(slow)):
+        assert [r[:2] for r in got] == [r[:2] for r in want]
+        np.testing.assert_allclose([r[2] + (r[3],) for r in got], [r[2] + (r[3],) for r in want], rtol=0, atol=1e-12)
+    assert np.all(fast.A[~fast.valid] == 0) and np.all(fast.b[~fast.valid] == 1) and np.all(fast.kind[~fast.valid] == -1)
+
+
+def test_reciprocal_rows_are_exact_negations():
+    """Robot j's row for the pair (i, j) is exactly (−a, −b) (appendix B; no buffers here)."""
+    rng = np.random.default_rng(5)
+    p = rng.uniform(0, 8, (200, 2))
+    cells = build_cells(p, np.broadcast_to(np.array([[0.02, 0.004], [0.004, 0.01]]), (200, 2, 2)), np.zeros(200), 0.0,
+                        CellGeometry(ObstacleSet.build([], np.zeros((0, 2, 2)), 0.0), np.zeros((0, 2)), np.zeros(0)), 2.0)
+    for i in range(200):
+        for r in np.flatnonzero(cells.valid[i]):
+            j = cells.source[i, r]
+            back = np.flatnonzero(cells.valid[j] & (cells.source[j] == i))
+            assert len(back) == 1
+            assert np.array_equal(cells.A[j, back[0]], -cells.A[i, r])
+            assert cells.b[j, back[0]] == -cells.b[i, r]
+
+
+def test_box_neighbours_match_a_kd_tree():
+    rng = np.random.default_rng(6)
+    for n in (1, 2, 40, 800):
+        p = rng.uniform(0, 15, (n, 2))
+        p[: n // 4] = np.round(p[: n // 4])  # exact ties on the box boundary
+        start, index = box_neighbours(p, 1.0)
+        got = {(i, int(j)) for i in range(n) for j in index[start[i]:start[i + 1]]}
+        pairs = cKDTree(p).query_pairs(1.0, p=np.inf) if n > 1 else set()
+        assert got == pairs | {(j, i) for i, j in pairs}
+        assert all(np.all(np.diff(index[start[i]:start[i + 1]]) > 0) for i in range(n))
+
+
+def test_nearest_neighbours_match_brute_force_with_ties():
+    rng = np.random.default_rng(7)
+    p = np.round(rng.uniform(0, 12, (500, 2)) * 2) / 2  # many equal distances
+    index, count = nearest_neighbours(p, 10, 3.0)
+    d2 = np.sum((p[:, None] - p[None]) ** 2, axis=-1)
+    for i in range(len(p)):
+        d2[i, i] = np.inf
+        order = [j for j in np.lexsort((np.arange(len(p)), d2[i])) if d2[i, j] < 9.0][:10]
+        assert index[i, : count[i]].tolist() == order
+        assert np.all(index[i, count[i]:] == -1)
+
+
+def test_kernels_give_identical_results_on_one_and_two_threads(monkeypatch):
+    """Robots are independent in every kernel: the thread count changes nothing, bit for bit."""
+    from robofleet.avoidance.orca import OrcaParams, orca_velocities
+
+    monkeypatch.setattr(kernels, "PARALLEL_MIN_ROBOTS", 1)
+    rng = np.random.default_rng(8)
+    p = rng.uniform(-5.5, 5.5, (600, 2))
+    vel, pref = rng.normal(size=(600, 2)) * 0.2, rng.normal(size=(600, 2)) * 0.4
+    covs, geo = np.broadcast_to(0.01 * np.eye(2), (600, 2, 2)), geometry_with_obstacles()
+    results = []
+    for threads in (1, min(2, numba.config.NUMBA_NUM_THREADS)):
+        kernels.set_threads(threads)
+        cells = build_cells(p, covs, np.full(600, 0.2), 1.63, geo, 2.0)
+        proj = project_onto_cells(-p, cells)
+        v, infeasible = orca_velocities(p, vel, pref, 0.2, 0.4, OrcaParams(), 0.1)
+        results.append((cells.A, cells.b, cells.source, proj.point, proj.active, v, infeasible))
+    kernels.set_threads(numba.config.NUMBA_NUM_THREADS)
+    for a, b in zip(*results):
+        assert np.array_equal(a, b, equal_nan=True)
+
+
+@pytest.mark.parametrize("bad", [0, -1, 10**6, 1.5, True])
+def test_thread_setting_refuses_bad_counts(bad):
+    with pytest.raises(ConfigError, match="threads"):
+        kernels.set_threads(bad)
