@@ -79,3 +79,12 @@ def test_malformed_files_are_one_line_for_validate_and_run(content, expected, tm
     for command in ("validate", "run"):
         line = refused(capsys, command, path, *(["--out", tmp_path / "out"] if command == "run" else []))
         assert line.startswith(f"error: {path}: ") and expected in line, line
+
+
+def test_unusable_paths_on_the_command_line_are_one_line(tmp_path, capsys):
+    assert "--out: expected a usable directory path" in refused(capsys, "run", "avoidance/circle_swap", "--quiet", "--out", "y" * 5000)
+    sweep = tmp_path / "s.yaml"
+    sweep.write_text(yaml.safe_dump({"scenario": "avoidance/circle_swap", "overrides": {"max_steps": 2}, "seeds": 1}))
+    assert "store: expected a usable directory path" in refused(capsys, "sweep", sweep, "--executor", "serial", "--quiet", "--out", "y" * 5000)
+    assert "expected a file or a shipped scenario name" in refused(capsys, "validate", "x" * 5000)
+    assert "expected a readable YAML file" in refused(capsys, "validate", "a\x00b.yaml")

@@ -19,10 +19,16 @@ def confidence_quantile(delta: float) -> float:
     return float(ndtri(np.sqrt(1.0 - checked_delta(delta))))
 
 
+MIN_DELTA = 1e-12
+"""The smallest δ whose quantile is a finite number in float arithmetic (√(1 − δ) < 1)."""
+
+
 def checked_delta(delta: object) -> float:
-    """``delta`` as a float in (0, 1), or a :class:`ConfigError` naming it (input validation)."""
+    """``delta`` as a float in [1e-12, 1), or a :class:`ConfigError` naming it (input validation)."""
     if isinstance(delta, (bool, np.bool_)) or not isinstance(delta, (int, float, np.integer, np.floating)) or not 0.0 < delta < 1.0:
         raise ConfigError(f"delta: expected a number in (0, 1), received {short_repr(delta)}")
+    if delta < MIN_DELTA:
+        raise ConfigError(f"delta: expected a number in [{MIN_DELTA:g}, 1) (smaller ones make Φ⁻¹(√(1 − δ)) infinite), received {short_repr(delta)}")
     return float(delta)
 
 

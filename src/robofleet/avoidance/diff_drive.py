@@ -86,5 +86,6 @@ def three_projection_control(poses: np.ndarray, goals: np.ndarray, A: np.ndarray
     with np.errstate(divide="ignore", invalid="ignore"):
         w_tmp = np.where(np.abs(forward) > 1e-12, -np.arctan(lateral / forward), -np.sign(lateral) * np.pi / 2)
     w_tmp = np.where(np.hypot(forward, lateral) > 1e-12, w_tmp, 0.0)
-    k = 0.99 * np.minimum(np.minimum(params.v_max / np.maximum(np.abs(v_tmp), 1e-300), params.omega_max / np.maximum(np.abs(w_tmp), 1e-300)), 1.0 / dt)
+    with np.errstate(over="ignore"):  # a huge ratio (fast robot, tiny step) is capped by 1/dt just below
+        k = 0.99 * np.minimum(np.minimum(params.v_max / np.maximum(np.abs(v_tmp), 1e-300), params.omega_max / np.maximum(np.abs(w_tmp), 1e-300)), 1.0 / dt)
     return np.stack([-k * v_tmp, -0.5 * k * w_tmp], axis=-1)

@@ -57,7 +57,7 @@ from ..core.errors import ScenarioError
 from ..core.spec_blocks import WorkspaceSpec, is_convex
 from ..core.workspace import Workspace
 from ..dynamics.quadrotor import QuadrotorParams
-from .buffer import confidence_quantile, shadow_epsilon
+from .buffer import MIN_DELTA, confidence_quantile, shadow_epsilon
 from .cell3d import shadow_radius
 from .mpc import MPCConfig
 from .orca import OrcaParams
@@ -412,6 +412,13 @@ class Spec(SpecModel):
     orca: OrcaParams = Field(default_factory=OrcaParams)
     space3d: Optional[Space3DSpec] = None
     teams: Optional[list[TeamSpec]] = None
+
+    @field_validator("delta")
+    @classmethod
+    def _finite_quantile(cls, value):  # input validation: a smaller δ makes Φ⁻¹(√(1 − δ)) infinite
+        if value < MIN_DELTA:
+            raise ScenarioError("", f"a number in [{MIN_DELTA:g}, 1) (smaller ones make the quantile Φ⁻¹(√(1 − δ)) infinite)", value)
+        return value
 
     @model_validator(mode="before")
     @classmethod

@@ -16,7 +16,7 @@ from ..avoidance.family import FAMILY as AVOIDANCE
 from ..coordination.family import FAMILY as COORDINATION
 from ..core.budget import check_run_size
 from ..core.config import SpecModel, read_mapping, set_path, validate_model
-from ..core.errors import ConfigError, ScenarioError, short_repr
+from ..core.errors import ConfigError, InfeasibleError, ScenarioError, short_repr
 from ..core.family import Family
 from ..core.trace import Trace
 from ..flocking.family import FAMILY as FLOCKING
@@ -108,4 +108,8 @@ def simulate(scenario: ScenarioRef | SpecModel, seed: int | None = None, progres
     except ScenarioError as exc:
         if exc.source is None and spec.source:  # found while running: name the scenario's file
             raise exc.with_source(spec.source) from None
+        raise
+    except InfeasibleError as exc:  # this file's instance has no solution: name the file (arguments' errors stay as they are)
+        if spec.source and not str(exc).startswith(spec.source) and len(exc.args) == 1 and isinstance(exc.args[0], str):
+            raise type(exc)(f"{spec.source}: {exc}") from None
         raise
