@@ -48,3 +48,12 @@ def test_an_mpc_scenario_without_casadi_is_refused_at_validation_naming_the_extr
     monkeypatch.setattr(importlib.util, "find_spec", lambda name, *a: None if name == "casadi" else real(name, *a))
     with pytest.raises(ScenarioError, match=r"teams\.0\.model\.controller: expected an installed casadi .*robofleet\[mpc\]"):
         robofleet.load_scenario("avoidance/quadrotors_3d")
+
+
+def test_simulate_refuses_what_is_not_a_validated_scenario():
+    from robofleet.avoidance import simulate
+    from robofleet.core.errors import ConfigError
+
+    for bad in (None, {"family": "avoidance"}, "avoidance/circle_swap"):
+        with pytest.raises(ConfigError, match=r"spec: expected a validated avoidance scenario"):
+            simulate(bad, seed=1)

@@ -18,8 +18,9 @@ goal and the map.
   grown by ``sight_margin`` (less than ``margin``, so that the edges of a grown polygon
   and segments grazing it count as free). Convex obstacles are tested with the
   parametric clipping of a segment against half-planes (Cyrus & Beck 1978).
-* **Cost to go** ``D_i(v)``: Dijkstra on the visibility graph from every robot's goal,
-  once per run (:meth:`Roadmap.costs_to_goals`).
+* **Cost to go** ``D_i(v)``: node-to-node shortest paths (Dijkstra from every node,
+  once per workspace) closed with the free segments to each goal, once per run
+  (:meth:`Roadmap.costs_to_goals`).
 * **Sub-goal** each step: among the nodes and the goal visible from the estimate ``p̂``,
   the one minimising ``‖p̂ − v‖ + D_i(v)`` (the goal itself when it is visible and
   nearest; the goal, too, when nothing is visible, e.g. with the estimate inside a
@@ -119,6 +120,7 @@ class Roadmap:
         keep = np.all((nodes >= lo) & (nodes <= hi), axis=1) & ~self._inside_grown(nodes, grown)
         self.nodes = nodes[keep]
         self.node_edges = self._visibility(self.nodes, self.nodes)
+        self.node_paths = self._shortest_paths(self.node_edges)
 
     @staticmethod
     def _inside_grown(points: np.ndarray, grown: list[np.ndarray]) -> np.ndarray:
@@ -128,6 +130,15 @@ class Roadmap:
         planes = halfplanes(grown)
         slack = np.einsum("okc,sc->sok", planes.A, points) - planes.b[None]
         return np.any(np.all(slack < -1e-6, axis=2), axis=1)
+
+    @staticmethod
+    def _shortest_paths(edges: np.ndarray) -> np.ndarray:
+        """``(V, V)`` shortest path lengths over the free node-to-node segments."""
+        if len(edges) == 0:
+            return np.zeros((0, 0))
+        graph = np.where(np.isfinite(edges), np.maximum(edges, _EPS), 0.0)
+        np.fill_diagonal(graph, 0.0)
+        return dijkstra(graph, directed=False)
 
     def _visibility(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
         """``(len(a), len(b))`` lengths of free segments, ``inf`` where blocked."""
@@ -140,21 +151,13 @@ class Roadmap:
 
     def costs_to_goals(self, goals: np.ndarray) -> np.ndarray:
         """``D[i, v]``: length of the shortest free path from node ``v`` to goal ``i``
-        (``inf`` if none); Dijkstra over nodes plus that goal."""
-        n_nodes = len(self.nodes)
-        costs = np.full((len(goals), n_nodes), np.inf)
-        if n_nodes == 0:
-            return costs
+        (``inf`` if none): ``min_u (d(v, u) + ‖u − g_i‖)`` over the nodes ``u`` that see
+        the goal, with ``d`` the node-to-node shortest paths (one Dijkstra from every
+        node, computed once for all goals)."""
+        if len(self.nodes) == 0:
+            return np.full((len(goals), 0), np.inf)
         to_goal = self._visibility(self.nodes, goals)  # (V, N)
-        for i in range(len(goals)):
-            graph = np.full((n_nodes + 1, n_nodes + 1), np.inf)
-            graph[:n_nodes, :n_nodes] = self.node_edges
-            graph[:n_nodes, n_nodes] = graph[n_nodes, :n_nodes] = to_goal[:, i]
-            np.fill_diagonal(graph, np.inf)
-            dense = np.where(np.isfinite(graph), np.maximum(graph, _EPS), 0.0)
-            costs[i] = dijkstra(dense, directed=False, indices=n_nodes)[:n_nodes]
-        return costs
-
+        return np.min(self.node_paths[:, :, None] + to_goal[None, :, :], axis=1).T
     def subgoals(self, estimates: np.ndarray, goals: np.ndarray, costs: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Each robot's sub-goal ``(N, 2)`` — the visible node or goal minimising
         ``‖p̂ − v‖ + D_i(v)`` (module docstring) —, the path length ``D_i`` left after it

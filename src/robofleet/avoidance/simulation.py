@@ -37,6 +37,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from shapely.geometry import Polygon
 
+from ..core.family import expect_spec
 from ..core.recorder import Recorder
 from ..core.rng import as_generator, resolve_seed
 from ..core.trace import Trace, to_plain
@@ -422,7 +423,8 @@ class World:
                        for team, sl in zip(teams, slices)]
         for team, sl, g in zip(teams, slices, self.groups):
             g.navigation = self.navigation(team, self.goals[sl])
-            g.parking = ParkingState.initial(team.n)
+            if g.si_state is None:  # single integrators keep theirs in the controller state
+                g.parking = ParkingState.initial(team.n)
         self.noise_factor = self.position_noise_factor(teams, slices)
         self.obstacle_factor, self.n_obstacles = self.obstacle_noise()
         self.radius = np.full(self.n, spec.robots.radius)
@@ -704,6 +706,7 @@ def simulate(spec: Spec, seed: int | None = None, progress: bool = False) -> Tra
         ``loop_seconds``: the step loop's wall time alone (without the set-up and the
         per-run results).
     """
+    expect_spec(spec, Spec, "avoidance")  # input validation: a validated avoidance scenario
     seed = resolve_seed(seed)
     rng = as_generator(seed)
     world = World(spec, rng)
