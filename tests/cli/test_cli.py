@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -57,10 +58,17 @@ def test_sweep_errors_exit_2_with_one_line(tmp_path, robofleet_bin):
     assert_one_line_error(run_cli(robofleet_bin, "sweep", sweep, "--executor", "threads"), "executor", "'threads'", "'dask'")
 
 
-def test_usage_errors_exit_2_without_traceback(tmp_path, robofleet_bin):
-    result = run_cli(robofleet_bin, "run", tmp_path / "x.yaml", "--seed", "x")
-    assert result.returncode == 2 and "Traceback" not in result.stderr + result.stdout
-    assert "--seed" in result.stderr
+def test_usage_errors_are_one_line_naming_option_and_received_value(tmp_path, robofleet_bin):
+    assert_one_line_error(run_cli(robofleet_bin, "run", tmp_path / "x.yaml", "--seed", "x"), "--seed", "received 'x'", "run --help")
+    assert_one_line_error(run_cli(robofleet_bin, "run", tmp_path / "x.yaml", "--seed=-3"), "--seed", "received '-3'")
+    assert_one_line_error(run_cli(robofleet_bin, "run"), "scenario", "run --help")
+    assert_one_line_error(run_cli(robofleet_bin, "no-such-command"), "no-such-command")
+    assert_one_line_error(run_cli(robofleet_bin, "validate", tmp_path / "x.yaml", "--bogus"), "--bogus")
+
+
+def test_python_dash_m_is_the_same_command_line():
+    result = subprocess.run([sys.executable, "-m", "robofleet", "--version"], capture_output=True, text=True, timeout=120)
+    assert result.stdout.strip() == f"robofleet {robofleet.__version__}"
 
 
 def test_run_writes_trace_and_strict_json_summary(tmp_path, toy_family, toy_file, capsys):

@@ -338,6 +338,29 @@ def show_warning(message: Warning | str, category: type[Warning], filename: str,
     typer.echo(f"warning: {message}", err=True)
 
 
+def usage_error_line(exc: Exception, argv: list[str]) -> str:
+    """A command-line usage error as one line: click's message, the value received when the
+    error names an option that was given one, and where to read the usage."""
+    line = " ".join(exc.format_message().split())
+    param = getattr(exc, "param", None)
+    received = option_value(argv, getattr(param, "opts", None) or [])
+    if received is not None and "received" not in line:
+        line += f", received {received!r}"
+    command = getattr(getattr(exc, "ctx", None), "command_path", None) or "robofleet"
+    return f"{line} (see '{command} --help')"
+
+
+def option_value(argv: list[str], names: list[str]) -> str | None:
+    """The text given to the first of ``names`` on ``argv`` (``--opt value`` or ``--opt=value``)."""
+    for i, token in enumerate(argv):
+        for name in names:
+            if token == name and i + 1 < len(argv):
+                return argv[i + 1]
+            if token.startswith(name + "="):
+                return token[len(name) + 1:]
+    return None
+
+
 def main(argv: list[str] | None = None) -> None:
     """Entry point: run the CLI, turning robofleet errors into one line and exit status 2."""
     warnings.showwarning = show_warning
@@ -358,9 +381,12 @@ def main(argv: list[str] | None = None) -> None:
     except Exception as exc:
         # usage errors: typer raises its own copies of click's exception classes, so they
         # are recognised by what they can do (show themselves, carry an exit code)
-        show, code = getattr(exc, "show", None), getattr(exc, "exit_code", None)
-        if callable(show) and isinstance(code, int):
-            show()
+        message, code = getattr(exc, "format_message", None), getattr(exc, "exit_code", None)
+        if type(exc).__name__ == "NoArgsIsHelpError":  # bare `robofleet`: the help, as usual
+            exc.show()
+            sys.exit(code)
+        if callable(message) and isinstance(code, int):
+            typer.echo(f"error: {usage_error_line(exc, argv if argv is not None else sys.argv[1:])}", err=True)
             sys.exit(code)
         raise
     finally:  # --memory-budget holds for one command, also when main() is called in-process
