@@ -15,7 +15,9 @@ scenarios shipped with before the liveness rules (:data:`EARLIER_BUDGETS`; what 
 got) next to the shipped scenario (liveness rules on, budget by the straight-line rule),
 and the mean travel time of the runs both finish, paired by seed.
 
-Run: ``python benchmarks/avoidance_liveness.py [--seeds 20] [--random 20] [--first-seed 0] [--scenarios ten_boxes ...] [--liveness off] [--budget-factor 4] [--before-after]``
+Run: ``python benchmarks/avoidance_liveness.py [--seeds 20] [--random 20] [--first-seed 0] [--random-first-seeds 1000 3000] [--scenarios ten_boxes ...] [--liveness off] [--budget-factor 4] [--before-after] [--jobs 2]``
+(``--scenarios`` with no name runs only the random scenarios; every run is seeded, so any
+seed range can be re-run and ``--jobs`` does not change a figure).
 """
 
 from __future__ import annotations
@@ -25,6 +27,7 @@ import glob
 import os
 import platform
 import time
+from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
 import yaml
@@ -78,6 +81,23 @@ def run(mapping: dict, seed: int) -> dict:
     return {**trace.results, "seed": seed, "robot_steps": int(positions.shape[0] * positions.shape[1])}
 
 
+def _run_pair(job: tuple[dict, int]) -> dict:
+    return run(*job)
+
+
+JOBS = 1
+"""Worker processes for the runs (``--jobs``); each run is seeded, so results do not depend on it."""
+
+
+def run_all(mappings: list[dict], seeds: list[int]) -> list[dict]:
+    """:func:`run` of every ``(mapping, seed)`` pair, in order, on :data:`JOBS` processes."""
+    jobs = list(zip(mappings, seeds))
+    if JOBS <= 1:
+        return [run(m, s) for m, s in jobs]
+    with ProcessPoolExecutor(JOBS) as pool:
+        return list(pool.map(_run_pair, jobs))
+
+
 def paired_travel_time(before: list[dict], after: list[dict]) -> str:
     """Mean travel time before → after over the seeds both finish, and the change."""
     both = [(b["mean_travel_time"], a["mean_travel_time"]) for b, a in zip(before, after) if b["success"] and a["success"]]
@@ -115,45 +135,58 @@ def before_after(name: str, mapping: dict, seeds: range, delta: float) -> list[s
     """Two table rows (the paper's controller at the earlier budget, the shipped scenario)
     and the paired travel time."""
     before = {**mapping, "max_steps": EARLIER_BUDGETS[name], "liveness": {"enabled": False}}
-    rows_b = [run(before, s) for s in seeds]
-    rows_a = [run(mapping, s) for s in seeds]
+    rows_b = run_all([before] * len(seeds), list(seeds))
+    rows_a = run_all([mapping] * len(seeds), list(seeds))
     return [summarise(f"{name}, before", rows_b, delta), summarise(f"{name}, shipped", rows_a, delta),
             f"|  | travel time, seeds both finish: {paired_travel_time(rows_b, rows_a)} |  |  |  |  |  |  |  |  |"]
 
 
+def random_rows(rnd: range, liveness: str, budget_factor: float) -> list[dict]:
+    """Runs of the random scenarios of ``rnd`` (scenario seed = run seed)."""
+    return run_all([with_liveness(random_scenario(s), liveness, budget_factor) for s in rnd], list(rnd))
+
+
+def random_before_after(rnd: range) -> list[str]:
+    """The before/after rows of the random scenarios of ``rnd``."""
+    rows_b = run_all([{**random_scenario(s), "max_steps": EARLIER_BUDGETS["random"], "liveness": {"enabled": False}} for s in rnd], list(rnd))
+    rows_a = random_rows(rnd, "spec", 1.0)
+    return [summarise(f"random {rnd.start}–{rnd.stop - 1}, before", rows_b, 0.1),
+            summarise(f"random {rnd.start}–{rnd.stop - 1}, shipped", rows_a, 0.1),
+            f"|  | travel time, seeds both finish: {paired_travel_time(rows_b, rows_a)} |  |  |  |  |  |  |  |  |"]
+
+
 def main() -> None:
+    global JOBS
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", type=int, default=20, help="seeds per shipped scenario")
     ap.add_argument("--first-seed", type=int, default=0)
-    ap.add_argument("--random", type=int, default=20, help="random scenarios (seeds first-seed…)")
-    ap.add_argument("--scenarios", nargs="*", default=None, help="shipped scenario names (default: all 2-D)")
+    ap.add_argument("--random", type=int, default=20, help="random scenarios per seed range")
+    ap.add_argument("--random-first-seeds", type=int, nargs="*", default=None,
+                    help="first seed of each range of random scenarios (default: --first-seed)")
+    ap.add_argument("--scenarios", nargs="*", default=None, help="shipped scenario names (default: all 2-D; none: only random)")
     ap.add_argument("--liveness", choices=["on", "off", "spec"], default="spec")
     ap.add_argument("--budget-factor", type=float, default=1.0, help="multiply every step budget (1 = as shipped)")
     ap.add_argument("--before-after", action="store_true", help="the paper's controller at the earlier budgets next to the shipped scenarios")
+    ap.add_argument("--jobs", type=int, default=1, help="worker processes (results do not depend on it)")
     args = ap.parse_args()
+    JOBS = args.jobs
     print(f"machine: {platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}")
     print(HEADER)
     t0 = time.perf_counter()
     seeds = range(args.first_seed, args.first_seed + args.seeds)
-    if args.before_after:
-        for name, mapping in shipped_mappings(args.scenarios).items():
+    shipped = shipped_mappings(args.scenarios) if args.scenarios != [] else {}
+    ranges = [range(f, f + args.random) for f in (args.random_first_seeds or [args.first_seed])] if args.random else []
+    for name, mapping in shipped.items():
+        if args.before_after:
             print("\n".join(before_after(name, mapping, seeds, mapping.get("delta", 0.1))), flush=True)
-        if args.random:
-            rnd = range(args.first_seed, args.first_seed + args.random)
-            rows_b = [run({**random_scenario(s), "max_steps": EARLIER_BUDGETS["random"], "liveness": {"enabled": False}}, s) for s in rnd]
-            rows_a = [run(random_scenario(s), s) for s in rnd]
-            print(summarise(f"random {rnd.start}–{rnd.stop - 1}, before", rows_b, 0.1))
-            print(summarise(f"random {rnd.start}–{rnd.stop - 1}, shipped", rows_a, 0.1))
-            print(f"|  | travel time, seeds both finish: {paired_travel_time(rows_b, rows_a)} |  |  |  |  |  |  |  |  |")
-        print(f"wall time: {time.perf_counter() - t0:.0f} s")
-        return
-    for name, mapping in shipped_mappings(args.scenarios).items():
-        m = with_liveness(mapping, args.liveness, args.budget_factor)
-        print(summarise(name, [run(m, s) for s in seeds], mapping.get("delta", 0.1)), flush=True)
-    if args.random:
-        rnd = range(args.first_seed, args.first_seed + args.random)
-        results = [run(with_liveness(random_scenario(s), args.liveness, args.budget_factor), s) for s in rnd]
-        print(summarise(f"random (seeds {rnd.start}–{rnd.stop - 1})", results, 0.1), flush=True)
+        else:
+            m = with_liveness(mapping, args.liveness, args.budget_factor)
+            print(summarise(name, run_all([m] * len(seeds), list(seeds)), mapping.get("delta", 0.1)), flush=True)
+    for rnd in ranges:
+        if args.before_after:
+            print("\n".join(random_before_after(rnd)), flush=True)
+        else:
+            print(summarise(f"random (seeds {rnd.start}–{rnd.stop - 1})", random_rows(rnd, args.liveness, args.budget_factor), 0.1), flush=True)
     print(f"wall time: {time.perf_counter() - t0:.0f} s")
 
 

@@ -1,7 +1,7 @@
 """Throughput of the single-integrator B-UAVC step on the circle swap at scale.
 
 Robots sit on a circle whose radius grows with N so the spacing stays 4 r_s (neighbours
-found with a k-d tree, no O(N²) loop). Prints time per step and robot-steps per second
+found on a uniform grid, no O(N²) loop). Prints time per step and robot-steps per second
 over the first ``--steps`` steps (the whole team's cell construction + projection +
 control, as measured inside the simulation loop), and the growth factor between sizes
 with the one N log N predicts (×13.3 from 1k to 10k, ×5.9 from 10k to 50k), the whole

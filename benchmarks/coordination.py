@@ -5,16 +5,30 @@
 2. Time per flip test: incremental cycle test (Pearce–Kelly) vs the full rebuild of the
    active subgraph (edge arrays + strongly connected components), and vs rebuilding the
    segment graph from scratch as the authors' release did; at 100 robots. Target ≥ 20×.
-3. Whole-experiment wall time: one Fig. 6 instance (six variants through ``simulate``) per robot
-   count, serial, with the per-process plan cache and with planning repeated for every run.
+3. One Fig. 6 instance (six variants through ``simulate``) per robot count, serial, with
+   the per-process plan cache and with planning repeated for every run.
+4. The whole experiment: the 240 runs of ``robofleet reproduce rmtrack --budget full``
+   (sweep ``rmtrack_fig6``, 10 seeds), each round in fresh processes with this tree's
+   sources and, with ``--before SRC``, the sources of an unchanged earlier copy (e.g. a
+   ``git worktree`` of the earlier commit: pass its ``src`` folder), interleaved. Prints
+   wall and CPU seconds per round, the ratio of each round, and whether the two result
+   tables are identical value for value (all columns but the measured times).
 
-Run:  .venv/bin/python benchmarks/coordination.py [--quick]
+Run:  .venv/bin/python benchmarks/coordination.py [--quick] [--before OLD/src] [--rounds 3] [--serial] [--only-experiment]
+Target: the 240 runs in ≤ 15 s wall on 2 cores (``--executor process --workers 2``).
 """
 
 from __future__ import annotations
 
 import argparse
+import json
+import os
+import statistics
+import subprocess
+import sys
+import tempfile
 import time
+from pathlib import Path
 
 import numpy as np
 from scipy.spatial import cKDTree
@@ -28,7 +42,27 @@ from robofleet.coordination.segment_graph import IncrementalCycleDetector, build
 from robofleet.coordination.trajectories import make_trajectories
 from robofleet.core.rng import spawn_seeds
 
+from _machine import machine
+
 RADIUS, STEP = 15.0, 5.0
+THIS_SRC = str(Path(__file__).resolve().parent.parent / "src")
+TIMING_COLUMNS = ("wall_seconds", "decision_seconds", "plan_seconds")
+"""Result columns that are measured times (the only ones allowed to differ between trees)."""
+
+#: One whole-experiment run in a fresh process: the rmtrack reproduction's sweep at a
+#: budget, into a fresh store; prints wall and CPU seconds (this process and its workers).
+EXPERIMENT_RUN = """
+import json, resource, sys, time
+t0 = time.perf_counter()
+from robofleet.experiments.reproductions import REPRODUCTIONS
+from robofleet.experiments.sweep import run_sweep
+budget, executor, workers, out = sys.argv[1], sys.argv[2], int(sys.argv[3]), sys.argv[4]
+rep = next(r for r in (REPRODUCTIONS.values() if isinstance(REPRODUCTIONS, dict) else REPRODUCTIONS) if r.name == "rmtrack")
+frame = run_sweep(rep.sweep_mapping("rmtrack_fig6", rep.budgets[budget]), executor=executor, workers=workers, progress=False, out=out)
+wall = time.perf_counter() - t0
+cpu = sum(getattr(resource.getrusage(who), f) for who in (resource.RUSAGE_SELF, resource.RUSAGE_CHILDREN) for f in ("ru_utime", "ru_stime"))
+print(json.dumps({"wall": wall, "cpu": cpu, "runs": len(frame)}))
+"""
 
 
 def synthetic_plan(n: int, rng: np.random.Generator, waypoints: int = 5, collision_free: bool = True):
@@ -144,6 +178,7 @@ def bench_experiment(counts, root_seed: int = 11):
     print("|---:|---:|---:|---:|---:|")
     seed = spawn_seeds(root_seed, 1)[0]
     totals = [0.0, 0.0]
+    simulate(load_scenario("coordination/x_corridor_5_tff"), seed=0)  # warm-up: loads the compiled kernels once
     for n in counts:
         specs = [load_scenario("coordination/x_corridor_20", {"robots.count": n, "robots.instance_seed": None,
                                                               "policy.method": v.method.value, "policy.deadlock_check": v.deadlock_check})
@@ -163,10 +198,69 @@ def bench_experiment(counts, root_seed: int = 11):
           f"10 instances ≈ {10 * totals[0] / 60:.1f} CPU-minutes cached ({10 * totals[1] / 60:.1f} uncached)")
 
 
+def experiment_round(src: str, budget: str, executor: str, workers: int, out: Path) -> dict:
+    """One whole-experiment run with the sources ``src`` in a fresh process (imports included)."""
+    env = {**os.environ, "PYTHONPATH": src}
+    done = subprocess.run([sys.executable, "-c", EXPERIMENT_RUN, budget, executor, str(workers), str(out)], env=env,
+                          capture_output=True, text=True, check=True)
+    return json.loads(done.stdout.strip().splitlines()[-1])
+
+
+def same_rows(a: Path, b: Path) -> tuple[bool, str]:
+    """Whether two result stores hold the same rows, value for value, except the measured times."""
+    import pandas as pd
+
+    x, y = (pd.read_parquet(p).sort_values("run_id").reset_index(drop=True) for p in (a, b))
+    columns = [c for c in x.columns if c not in TIMING_COLUMNS]
+    same = list(x.columns) == list(y.columns) and len(x) == len(y) and all(x[c].equals(y[c]) for c in columns)
+    return same, f"{len(x)} rows × {len(columns)} columns"
+
+
+def bench_whole_experiment(before: str | None, rounds: int, budget: str, executors: list[tuple[str, int]]):
+    """The rmtrack sweep at ``budget`` per executor: this tree and (``before``) an earlier copy, interleaved."""
+    trees = [("before", before)] if before else []
+    trees.append(("after", THIS_SRC))
+    print(f"\n## whole experiment: the rmtrack_fig6 sweep, budget {budget!r} (fresh processes, imports included), {rounds} rounds")
+    for executor, workers in executors:
+        label = f"{executor}" + (f", {workers} workers" if executor == "process" else "")
+        print(f"\n### {label}")
+        print("| round | " + " | ".join(f"{name} wall [s] | {name} CPU [s]" for name, _ in trees) + (" | wall ratio |" if before else ""))
+        print("|---:|" + "---:|---:|" * len(trees) + ("---:|" if before else ""))
+        walls = {name: [] for name, _ in trees}
+        with tempfile.TemporaryDirectory() as tmp:
+            for r in range(rounds):
+                stores, cells = {}, []
+                for name, src in trees:
+                    stores[name] = Path(tmp) / f"{name}_{r}"
+                    got = experiment_round(src, budget, executor, workers, stores[name])
+                    walls[name].append(got["wall"])
+                    cells.append(f"{got['wall']:.1f} | {got['cpu']:.1f}")
+                ratio = f" {walls['before'][-1] / walls['after'][-1]:.1f}× |" if before else ""
+                print(f"| {r + 1} | " + " | ".join(cells) + " |" + ratio)
+            summary = "; ".join(f"{name}: best {min(w):.1f} s, median {statistics.median(w):.1f} s" for name, w in walls.items())
+            print(f"\n{summary}")
+            if before:
+                ratios = [b / a for b, a in zip(walls["before"], walls["after"])]
+                same, size = same_rows(stores["before"], stores["after"])
+                print(f"ratio before/after: best-of-rounds {min(walls['before']) / min(walls['after']):.1f}×, "
+                      f"median of per-round ratios {statistics.median(ratios):.1f}×; "
+                      f"rows identical except measured times: {'yes' if same else 'NO'} ({size})")
+
+
 def main():
     parser = argparse.ArgumentParser()
-    parser.add_argument("--quick", action="store_true", help="smaller sizes")
+    parser.add_argument("--quick", action="store_true", help="smaller sizes (and the smallest experiment budget)")
+    parser.add_argument("--before", help="src folder of an unchanged earlier copy, timed against this tree")
+    parser.add_argument("--rounds", type=int, default=3, help="whole-experiment rounds (default 3)")
+    parser.add_argument("--only-experiment", action="store_true", help="only the whole-experiment figures")
+    parser.add_argument("--serial", action="store_true", help="also time the whole experiment on one process")
     args = parser.parse_args()
+    print(machine())
+    budget = "smallest" if args.quick else "full"
+    executors = [("process", 2)] + ([("serial", 1)] if args.serial else [])
+    bench_whole_experiment(args.before, args.rounds, budget, executors)
+    if args.only_experiment:
+        return
     rng = np.random.default_rng(0)
     bench_space((20, 50) if args.quick else (20, 50, 100), rng)
     bench_flip_tests(40 if args.quick else 100, rng, 3000 if args.quick else 20000)

@@ -1,16 +1,18 @@
 """Closed-loop 3-D B-UAVC runs with the quadrotor MPC (issue 10, item 4).
 
 Runs ``scenarios/avoidance/quadrotors_3d.yaml`` and ``heterogeneous.yaml`` (the mixed
-ground/air team) for every seed × noise level × solver configuration, every robot's σ
-(robots and obstacles of the scenario keep their own obstacle σ) set to the given level,
-and prints one JSON line per run, then one table row per group: runs, successes, runs
-with a contact (with the Clopper–Pearson 95 % upper bound of the per-run contact
-probability), contact steps, the MPC's share of robot-steps without an in-cell plan
-(``fallback``: ``mpc_status`` 1 over 0 and 1), of those the share whose estimate lay in
-its own cell, the share that had to brake (no plan at all), the per-robot-step solve time
-(median and 95th percentile of the CPU time of ``BuavcMPC.plan``), and the mean travel time.
+ground/air team) with their shipped step budgets for every seed × noise level × solver
+configuration — a noise level multiplies every team's σ of the file (``--scales``, default
+×0.5, ×1, ×2; ``--sigmas`` sets every team's σ instead; the obstacles keep their σ_o) —
+and prints one JSON line per run, then one table row per group: runs, successes (with
+the two-sided Clopper–Pearson 95 % interval), runs with a contact (with the one-sided
+Clopper–Pearson 95 % upper bound of the per-run contact probability), contact steps, the
+MPC's share of robot-steps without an in-cell plan (``fallback``: ``mpc_status`` 1 over 0
+and 1), of those the share whose estimate lay in its own cell, the share that had to
+brake (no plan at all), the per-robot-step solve time (median and 95th percentile of the
+CPU time of ``BuavcMPC.plan``), and the mean travel time.
 
-Usage: ``python benchmarks/mpc_3d.py [--seeds 0 20] [--sigmas 0.02 0.05 0.1]
+Usage: ``python benchmarks/mpc_3d.py [--seeds 0 20] [--scales 0.5 1 2 | --sigmas 0.02 0.05]
 [--scenarios quadrotors_3d heterogeneous] [--configs rti ipopt]``.
 """
 
@@ -60,10 +62,13 @@ class PlanTimer:
         BuavcMPC.plan = self._plan
 
 
-def run(base: dict, sigma: float, seed: int, config: dict) -> dict:
+def run(base: dict, noise: tuple[str, float], seed: int, config: dict) -> dict:
+    """One run of scenario ``base`` with every team's σ set (``("sigma", σ)``) or scaled
+    (``("scale", k)``), the MPC teams' solver configured by ``config``."""
     mapping = copy.deepcopy(base)
+    kind, level = noise
     for team in mapping["teams"]:
-        team["sigma"] = sigma
+        team["sigma"] = level if kind == "sigma" else level * team["sigma"]
         if team["model"].get("controller") == "mpc":
             team["model"].setdefault("mpc", {}).update(config)
     t0 = time.perf_counter()
@@ -83,12 +88,22 @@ def clopper_pearson_upper(k: int, n: int, level: float = 0.95) -> float:
     return 1.0 if k >= n else float(beta.ppf(level, k + 1, n - k))
 
 
-def report(name: str, sigma: float, config: str, rows: list[dict]) -> str:
+def clopper_pearson_interval(k: int, n: int, level: float = 0.95) -> tuple[float, float]:
+    """Two-sided ``level`` interval of a binomial probability after ``k`` successes in ``n`` trials."""
+    tail = (1.0 - level) / 2
+    low = 0.0 if k == 0 else float(beta.ppf(tail, k, n - k + 1))
+    high = 1.0 if k == n else float(beta.ppf(1.0 - tail, k + 1, n - k))
+    return low, high
+
+
+def report(name: str, noise: str, config: str, rows: list[dict]) -> str:
     runs, contact = len(rows), sum(r["collision_steps"] > 0 for r in rows)
+    wins = sum(r["success"] for r in rows)
+    low, high = clopper_pearson_interval(wins, runs)
     solves, fallbacks = sum(r["solves"] for r in rows), sum(r["fallbacks"] for r in rows)
     cpu = np.concatenate([r["cpu_ms"] for r in rows])
     travel = [r["mean_travel_time"] for r in rows if r["mean_travel_time"] is not None]
-    return (f"| {name} | {sigma} | {config} | {runs} | {sum(r['success'] for r in rows)} | {contact} "
+    return (f"| {name} | {noise} | {config} | {runs} | {wins} [{100 * low:.0f}–{100 * high:.0f} %] | {contact} "
             f"(≤ {clopper_pearson_upper(contact, runs):.3f}) | {sum(r['collision_steps'] for r in rows)} | "
             f"{100 * fallbacks / max(solves, 1):.2f} % | {100 * sum(r['fallbacks_in_cell'] for r in rows) / max(solves, 1):.2f} % | "
             f"{100 * sum(r['brakes'] for r in rows) / max(solves, 1):.2f} % | {np.median(cpu):.2f} | {np.percentile(cpu, 95):.2f} | "
@@ -98,7 +113,9 @@ def report(name: str, sigma: float, config: str, rows: list[dict]) -> str:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", type=int, nargs=2, default=[0, 20])
-    parser.add_argument("--sigmas", type=float, nargs="+", default=[0.02, 0.05, 0.1])
+    levels = parser.add_mutually_exclusive_group()
+    levels.add_argument("--scales", type=float, nargs="+", default=[0.5, 1.0, 2.0], help="multiples of every team's σ")
+    levels.add_argument("--sigmas", type=float, nargs="+", help="every team's σ")
     parser.add_argument("--scenarios", nargs="+", default=["quadrotors_3d", "heterogeneous"])
     parser.add_argument("--configs", nargs="+", default=["rti"], choices=sorted(CONFIGS))
     args = parser.parse_args()
@@ -106,18 +123,20 @@ def main() -> None:
     groups = collections.defaultdict(list)
     for name in args.scenarios:
         base = yaml.safe_load(Path(f"scenarios/avoidance/{name}.yaml").read_text())
-        for sigma in args.sigmas:
+        noises = [("sigma", s) for s in args.sigmas] if args.sigmas else [("scale", k) for k in args.scales]
+        for noise in noises:
+            label = f"σ = {noise[1]}" if noise[0] == "sigma" else f"σ × {noise[1]:g}"
             for seed in range(*args.seeds):
                 for config in args.configs:
-                    row = run(base, sigma, seed, CONFIGS[config])
+                    row = run(base, noise, seed, CONFIGS[config])
                     brief = {k: v for k, v in row.items() if k != "cpu_ms"}
-                    print(json.dumps({"scenario": name, "sigma": sigma, "seed": seed, "config": config, **brief}), flush=True)
-                    groups[(name, sigma, config)].append(row)
-    print("| scenario | σ | solver | runs | success | runs with contact (CP 95 % upper) | contact steps | fallback | "
+                    print(json.dumps({"scenario": name, "noise": label, "seed": seed, "config": config, **brief}, ensure_ascii=False), flush=True)
+                    groups[(name, label, config)].append(row)
+    print("| scenario | noise | solver | runs | success [CP 95 %] | runs with contact (CP 95 % upper) | contact steps | fallback | "
           "fallback, estimate in cell | brake | solve CPU median [ms] | solve CPU p95 [ms] | mean travel time [s] |")
     print("|---|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
-    for (name, sigma, config), rows in groups.items():
-        print(report(name, sigma, config, rows))
+    for (name, noise, config), rows in groups.items():
+        print(report(name, noise, config, rows))
     runs = [r for rows in groups.values() for r in rows]
     contact = sum(r["collision_steps"] > 0 for r in runs)
     print(f"all groups: {len(runs)} runs, {contact} with contact, Clopper–Pearson 95 % upper bound "

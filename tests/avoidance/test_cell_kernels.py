@@ -16,7 +16,11 @@ from robofleet.avoidance.cell import (
     build_cells,
     neighbour_pairs,
 )
-from robofleet.avoidance.neighbours import box_neighbours, nearest_neighbours
+from robofleet.avoidance.neighbours import (
+    box_neighbours,
+    nearest_neighbours,
+    sort_by_cell,
+)
 from robofleet.avoidance.obstacles import ObstacleSet, wall_planes
 from robofleet.avoidance.projection import project_onto_cells
 from robofleet.core.errors import ConfigError
@@ -77,6 +81,30 @@ def test_box_neighbours_match_a_kd_tree():
         pairs = cKDTree(p).query_pairs(1.0, p=np.inf) if n > 1 else set()
         assert got == pairs | {(j, i) for i, j in pairs}
         assert all(np.all(np.diff(index[start[i]:start[i + 1]]) > 0) for i in range(n))
+
+
+def test_box_neighbours_of_far_apart_clusters_match_a_kd_tree():
+    """Clusters 10⁵ cells apart: the keys are sorted by comparison instead of counting."""
+    rng = np.random.default_rng(9)
+    p = np.concatenate([rng.uniform(0, 4, (60, 2)), rng.uniform(0, 4, (60, 2)) + [1e5, -3e4]])
+    start, index = box_neighbours(p, 1.0)
+    got = {(i, int(j)) for i in range(len(p)) for j in index[start[i]:start[i + 1]]}
+    pairs = cKDTree(p).query_pairs(1.0, p=np.inf)
+    assert got == pairs | {(j, i) for i, j in pairs}
+
+
+@pytest.mark.parametrize("spread", [15.0, 1e6])
+def test_points_are_sorted_by_cell_key_then_index(spread):
+    """Both sorting paths give the order of (cell key, index), with one run per occupied cell."""
+    rng = np.random.default_rng(10)
+    p = np.round(rng.uniform(0, spread, (700, 2)) * 4) / 4  # points on cell borders too
+    runs = sort_by_cell(p, 1.0)
+    cell = np.floor((p - p.min(axis=0)) / 1.0).astype(np.int64)
+    key = cell[:, 0] * runs.rows + cell[:, 1]
+    assert runs.order.tolist() == np.lexsort((np.arange(len(p)), key)).tolist()
+    assert runs.cell_key.tolist() == np.unique(key).tolist()
+    assert np.array_equal(key[runs.order], np.repeat(runs.cell_key, np.diff(runs.start)))
+    assert np.array_equal(runs.sorted_points, p[runs.order])
 
 
 def test_nearest_neighbours_match_brute_force_with_ties():

@@ -141,3 +141,24 @@ def test_same_seed_same_trace_with_liveness():
     spec = robofleet.load_scenario("scenarios/avoidance/ten_boxes.yaml", overrides={"max_steps": 120, "liveness": {"enabled": True}})
     t1, t2 = robofleet.simulate(spec, seed=3), robofleet.simulate(spec, seed=3)
     np.testing.assert_array_equal(t1.arrays["positions"], t2.arrays["positions"])
+
+
+@pytest.mark.parametrize("seed", [0, 1000, 3000, 12345])
+def test_random_scenario_is_reproducible_and_uses_the_shipped_budget_rule(seed):
+    """Same seed ⇒ same mapping; 8–16 robots; convex obstacles inside the workspace;
+    ``max_steps`` is the straight-line rule of the shipped scenarios."""
+    from shapely.geometry import Polygon
+
+    from robofleet.avoidance.random_scenarios import OBSTACLES, ROBOTS, random_scenario
+    from robofleet.avoidance.spec import straight_line_budget
+
+    mapping = random_scenario(seed)
+    assert mapping == random_scenario(seed) and mapping != random_scenario(seed + 1)
+    spec = robofleet.load_scenario(mapping)
+    assert ROBOTS[0] <= spec.robots.n <= ROBOTS[1]
+    polygons = spec.workspace.obstacle_polygons()
+    assert OBSTACLES[0] <= len(polygons) <= OBSTACLES[1]
+    for p in polygons:
+        shape = Polygon(p)
+        assert shape.is_valid and abs(shape.convex_hull.area - shape.area) < 1e-9 and np.all(np.abs(p) < 5.0)
+    assert spec.max_steps == straight_line_budget(spec)

@@ -152,3 +152,62 @@ def test_ground_section_ignores_floor_and_ceiling_but_not_robots():
     np.testing.assert_allclose(cells.A[0, 2], [1.0, 0.0])
     np.testing.assert_allclose(cells.b[0, 2], (1.0 - 0.8 * 0.2) / 0.6)
     assert cells.b[0, 3] < 0  # a quadrotor plane below the ground robot: its section is empty
+
+
+def test_ground_robot_below_a_flying_one_keeps_its_half_of_the_space():
+    """A ground robot (Σ = σ² diag(1, 1, 0)) and a quadrotor high above it: the pair's plane
+    is the perpendicular bisector (both σ equal), not the horizontal plane through the
+    ground robot that its singular Σ gives appendix B's separator; the buffers use the true
+    Σ_i (the ground robot's has no z term), and the two rows are one plane."""
+    from robofleet.avoidance.simulation import cell_model, method_setup
+
+    sigma = 0.05
+    mapping = base(method="buavc", space3d={"bounds": [-3, -3, 0, 3, 3, 2.5]}, teams=[
+        {"model": {"kind": "unicycle", "omega_max": 1.5707963}, "n": 1, "v_max": 0.6, "sigma": sigma,
+         "layout": {"kind": "circle", "radius": 2.0}},
+        {"model": {"kind": "quadrotor", "controller": "mpc"}, "n": 1, "v_max": 1.0, "sigma": sigma,
+         "layout": {"kind": "circle", "radius": 2.0, "height": 1.5}}])
+    spec = robofleet.load_scenario(mapping)
+    setup = method_setup("buavc", spec.delta, 0.0)
+    ground, air = np.array([0.0, 0.0, 0.2]), np.array([0.1, 0.0, 1.5])
+    cells = cell_model(spec, setup).cells(np.stack([ground, air]), np.zeros((0, 3)))
+    rows = [int(np.flatnonzero(cells.valid[i] & (cells.kind[i] == Kind.ROBOT))[0]) for i in range(2)]
+    a_g, b_g = cells.A[0, rows[0]], cells.b[0, rows[0]]
+    a_a, b_a = cells.A[1, rows[1]], cells.b[1, rows[1]]
+    unit = (air - ground) / np.linalg.norm(air - ground)
+    np.testing.assert_allclose(a_g, unit, atol=1e-9)
+    np.testing.assert_allclose(a_a, -unit, atol=1e-9)
+    q, r = setup.quantile, spec.robots.radius
+    plane = unit @ (ground + air) / 2
+    np.testing.assert_allclose(b_g, plane - r - q * sigma * np.linalg.norm(unit[:2]), atol=1e-9)
+    np.testing.assert_allclose(b_a, -plane - r - q * sigma, atol=1e-9)
+    section = ground_section(Cells(cells.A[:1], cells.b[:1], cells.valid[:1], cells.kind[:1], cells.source[:1]), 0.2)
+    assert section.contains(ground[None, :2])[0]
+    assert Cells(cells.A[1:], cells.b[1:], cells.valid[1:], cells.kind[1:], cells.source[1:]).contains(air[None])[0]
+
+
+def test_ground_teams_in_3d_steer_by_the_roadmap_around_box_footprints():
+    """The liveness roadmap of a ground team in 3-D is built on the footprints of the
+    boxes that reach its plane (a box hanging above it is not an obstacle to it); flying
+    teams get none."""
+    from robofleet.avoidance.simulation import World, ground_footprints
+    from robofleet.core.geometry import box_vertices
+
+    spec = robofleet.load_scenario(SCENARIOS / "heterogeneous.yaml")
+    space = spec.space3d.model_copy(update={"boxes": [*spec.space3d.boxes, type(spec.space3d.boxes[0])(center=[2, 2, 2.0], size=[1, 1, 0.5])]})
+    footprints = ground_footprints(space, spec.ground_height(), spec.robots.radius)
+    box = spec.space3d.boxes[0]
+    assert len(footprints) == 1
+    np.testing.assert_allclose(footprints[0], box_vertices(box.center, box.size, box.yaw))
+    world = World(spec, np.random.default_rng(0))
+    ground, air = world.groups
+    assert ground.navigation is not None and air.navigation is None
+
+
+@pytest.mark.parametrize("name", ["heterogeneous.yaml", "quadrotors_3d.yaml"])
+def test_shipped_3d_step_budgets_follow_the_straight_line_rule(name):
+    from robofleet.avoidance.spec import straight_line_budget
+
+    spec = robofleet.load_scenario(SCENARIOS / name)
+    assert spec.max_steps == straight_line_budget(spec)
+    assert "straight_line_budget" in (SCENARIOS / name).read_text()

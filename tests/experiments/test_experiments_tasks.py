@@ -17,6 +17,7 @@ import pytest
 from robofleet.core.errors import ConfigError
 from robofleet.experiments import ResultStore, deterministic_columns, run_tasks
 from robofleet.experiments._selftest import noisy_sum
+from robofleet.experiments.executors import SeedQueue
 
 
 def make_tasks(n, **extra):
@@ -245,3 +246,19 @@ def test_ctrl_c_on_the_cli_sweep_exits_130_saying_how_to_resume(tmp_path, robofl
     lines = [line for line in err.splitlines() if line.strip()]
     assert len(lines) == 1 and lines[0].startswith("interrupted: ") and "of 200 runs stored" in lines[0], err
     assert "rerun the same command to resume" in lines[0] and "Traceback" not in err
+
+
+def test_process_workers_keep_to_the_seeds_they_claimed_then_take_what_is_left():
+    tasks = [{"run_id": f"{variant}-{seed}", "seed": seed} for variant in "abc" for seed in (7, 8, 9)]
+    queue = SeedQueue(tasks)
+    taken = {0: [], 1: []}
+    for worker in (0, 1, 0, 1, 0, 1, 0, 0, 0):  # worker 0 is faster
+        taken[worker].append(queue.next_for(worker)["run_id"])
+    assert taken[1] == ["a-8", "b-8", "c-8"]  # one seed, in task order, on one worker
+    assert taken[0] == ["a-7", "b-7", "c-7", "a-9", "b-9", "c-9"]
+    assert not queue and queue.next_for(1) is None
+
+
+def test_a_worker_with_nothing_left_to_claim_takes_another_workers_seed():
+    queue = SeedQueue([{"run_id": str(i), "seed": 1} for i in range(3)])
+    assert [queue.next_for(0)["run_id"], queue.next_for(1)["run_id"], queue.next_for(0)["run_id"]] == ["0", "1", "2"]

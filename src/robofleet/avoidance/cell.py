@@ -27,11 +27,11 @@ from ..core.errors import ConfigError, short_repr
 from .buffer import buffer
 from .kernels import use_parallel
 from .neighbours import (
-    around,
     box_gather,
     box_neighbours,
-    build_grid,
+    column_runs,
     insertion_sort,
+    sort_by_cell,
 )
 from .obstacles import ObstacleSet, obstacle_planes
 from .separator import (
@@ -134,7 +134,7 @@ def build_cells(
     In the plane with one Σ shared by all robots (the authors' setup) every robot's rows
     come from one compiled kernel, robots in parallel (:func:`_shared_cells_2d`);
     otherwise pairs are evaluated once each and scattered (appendix B reciprocity).
-    The cost is O(N + K) for K neighbour pairs (a uniform grid, :mod:`.neighbours`; a
+    The cost is O(N + K) for K neighbour pairs (a uniform grid, :mod:`robofleet.avoidance.neighbours`; a
     k-d tree in 3-D), plus O(N · O_loc · V) for obstacles.
     """
     check_cell_inputs(estimates, covs, radius, geometry)
@@ -162,8 +162,7 @@ def _shared_cells_2d(p, cov, radius, quantile, geometry: CellGeometry, obstacles
     """
     n = len(p)
     p = np.ascontiguousarray(p, dtype=np.float64)
-    g = build_grid(p, local_box)
-    grid = (local_box, g.rows, g.table_keys, g.table_cells, g.cell_xy, g.start, g.order, g.sorted_points)
+    grid = (local_box, *sort_by_cell(p, local_box))
     wall_a = np.ascontiguousarray(geometry.wall_a, dtype=np.float64).reshape(-1, 2)
     wall_b = np.ascontiguousarray(geometry.wall_b, dtype=np.float64).reshape(-1)
     wall_spread = quantile * np.sqrt(np.maximum(_quad_2d(wall_a, cov), 0.0))  # β − r_s of each wall row, as buffer()
@@ -218,7 +217,7 @@ def _gather(grid, wall_a, wall_b, n, parallel):
         if parallel:
             _gather_parallel(*grid, wall_a, wall_b, near, count, walls)
         else:
-            _gather_cells(0, len(grid[5]) - 1, *grid, wall_a, wall_b, near, count, walls)
+            _gather_cells(0, len(grid[3]) - 1, *grid, wall_a, wall_b, near, count, walls)
         most = int(count.max(initial=0))
         if most <= width:
             return count, walls, near
@@ -226,24 +225,23 @@ def _gather(grid, wall_a, wall_b, n, parallel):
 
 
 @numba.njit(cache=True, parallel=True)
-def _gather_parallel(r, rows, table_keys, table_cells, cell_xy, cstart, order, spts, wall_a, wall_b, near, count, walls):
+def _gather_parallel(r, rows, cell_key, cstart, order, spts, wall_a, wall_b, near, count, walls):
     cells = len(cstart) - 1
     for c in numba.prange((cells + _CHUNK - 1) // _CHUNK):
-        _gather_cells(c * _CHUNK, min(cells, (c + 1) * _CHUNK), r, rows, table_keys, table_cells, cell_xy, cstart, order, spts,
-                      wall_a, wall_b, near, count, walls)
+        _gather_cells(c * _CHUNK, min(cells, (c + 1) * _CHUNK), r, rows, cell_key, cstart, order, spts, wall_a, wall_b, near, count, walls)
 
 
 @numba.njit(cache=True)
-def _gather_cells(lo, hi, r, rows, table_keys, table_cells, cell_xy, cstart, order, spts, wall_a, wall_b, near, count, walls):
+def _gather_cells(lo, hi, r, rows, cell_key, cstart, order, spts, wall_a, wall_b, near, count, walls):
     """Robots of grid cells ``lo … hi − 1``: box neighbours (sorted into ``near[i]`` when
     they fit), their count, and the walls within R_loc."""
-    runs = np.empty(9, np.int64)
+    runs, cursor = np.empty(6, np.int64), np.empty(6, np.int64)
     buf = np.empty(near.shape[1], np.int64)
     for c in range(lo, hi):
-        around(c, 1, rows, table_keys, table_cells, cell_xy, runs)
+        column_runs(c, rows, cell_key, cstart, cursor, c == lo, runs)
         for m in range(cstart[c], cstart[c + 1]):
             i = order[m]
-            k = box_gather(m, r, runs, cstart, order, spts, buf)
+            k = box_gather(m, r, runs, order, spts, buf)
             count[i] = k
             if k <= len(buf):
                 insertion_sort(buf[:k])

@@ -43,7 +43,7 @@ from .liveness import (
     right_hand_goals,
 )
 from .navigation import Navigation
-from .projection import Projection, project_onto_cells
+from .projection import Projection, project_onto_cells, steer
 
 NORMAL, ROTATE, VERTEX = 0, 1, 2
 _CLOCKWISE_90 = np.array([[0.0, 1.0], [-1.0, 0.0]])  # R_z(−90°)
@@ -116,7 +116,7 @@ def single_integrator_control(
     """
     goal_dist = np.linalg.norm(goals - estimates, axis=1)
     state.arrived |= goal_dist <= goal_tolerance
-    heading, to_go = (goals, goal_dist) if navigation is None else navigation.step(estimates)
+    heading, to_go = (goals, goal_dist) if navigation is None else navigation.step(estimates, state.arrived)
     working_goal = _working_goal(estimates, heading, state)
     moving_parked = np.zeros(len(goals), bool)
     if liveness is not None and liveness.enabled:
@@ -127,19 +127,16 @@ def single_integrator_control(
     proj = project_onto_cells(working_goal, cells)
     if liveness is not None and liveness.enabled and liveness.right_hand_angle > 0:
         proj = _right_hand(estimates, working_goal, proj, cells, state, liveness)
-    target = np.where(proj.empty[:, None], estimates, proj.point)
-    delta = target - estimates
-    dist = np.linalg.norm(delta, axis=1)
-    speed = np.minimum(v_max, dist / dt)
-    u = np.where(dist[:, None] > 1e-12, delta * (speed / np.maximum(dist, 1e-300))[:, None], 0.0)
-    u[state.arrived & ~moving_parked] = 0.0
-    state.speed_history[state.step % len(state.speed_history)] = np.linalg.norm(u, axis=1)
-    stuck = _detect_deadlock(to_go, np.where(proj.empty, np.inf, dist), state, v_max, dt, deadlock)
-    state.livelocks += stuck & (state.speed_history.mean(axis=0) >= 0.5 * v_max)
+    u, state.speed_history[state.step % len(state.speed_history)], move_dist = steer(estimates, proj, v_max, dt, state.arrived & ~moving_parked)
+    stuck = _detect_deadlock(to_go, move_dist, state, v_max, dt, deadlock)
+    if stuck.any():  # the window's mean speed tells a livelock from a deadlock
+        state.livelocks += stuck & (state.speed_history.mean(axis=0) >= 0.5 * v_max)
     if deadlock.enabled and stuck.any():
         detours = grown_obstacles if navigation is None else None  # the roadmap already routes around obstacles
         _start_recovery(stuck, estimates, heading, cells, proj.active, state, deadlock, detours)
-    reached = (state.mode == VERTEX) & (np.linalg.norm(state.target - estimates, axis=1) <= max(goal_tolerance, float(np.max(v_max)) * dt))
+    heading_vertex = np.flatnonzero(state.mode == VERTEX)  # only these robots can reach their detour vertex
+    reach = max(goal_tolerance, float(np.max(v_max)) * dt)
+    reached = heading_vertex[np.linalg.norm(state.target[heading_vertex] - estimates[heading_vertex], axis=1) <= reach]
     state.mode_left[reached] = 0
     state.mode_left -= state.mode != NORMAL
     state.mode[state.mode_left <= 0] = NORMAL
@@ -173,7 +170,7 @@ def _working_goal(estimates, goals, state: ControllerState) -> np.ndarray:
     rot = state.mode == ROTATE
     if rot.any():
         g[rot] = (goals[rot] - estimates[rot]) @ _CLOCKWISE_90.T + estimates[rot]
-    vert = state.mode == VERTEX
+    vert = np.flatnonzero(state.mode == VERTEX)
     g[vert] = state.target[vert]
     return g
 
@@ -189,7 +186,8 @@ def _detect_deadlock(goal_dist, move_dist, state: ControllerState, v_max, dt, pa
     slow = np.isfinite(before) & (before - goal_dist < min_progress)
     sitting = move_dist < 1e-9  # projected goal at the estimate (an empty cell passes inf)
     stuck = (slow | sitting) & ~state.arrived & (state.mode == NORMAL)
-    hist[:, stuck] = np.nan  # restart the window after a recovery
+    if stuck.any():
+        hist[:, stuck] = np.nan  # restart the window after a recovery
     state.deadlocks += stuck
     return stuck
 

@@ -2,7 +2,7 @@
 
 The authors' controllers (notes/buavc.md "Controllers", "Deadlock heuristic") stop a
 robot for good at its goal and react to a deadlock only after it is detected, with a
-90° goal rotation or a detour to one vertex of the blocking obstacle. Three rules, all
+90° goal rotation or a detour to one vertex of the blocking obstacle. Four rules, all
 decentralized and communication-free, replace that where it fails:
 
 1. **Roadmap sub-goals** (:mod:`.navigation`): a robot steers to the next vertex of its
@@ -25,6 +25,10 @@ decentralized and communication-free, replace that where it fails:
    two parked robots never yield to each other for ever. A run ends (and succeeds) only
    when every robot has arrived and none is away from its goal on a yield
    (:meth:`ParkingState.settled`).
+4. **Detours around still neighbours** (:mod:`.detour`, ours): a blocked robot treats
+   the neighbours it sees holding still (parked or stuck) as discs of the pair clearance
+   and re-plans its roadmap route around them, so a gap a parked robot closes is passed
+   the other way round (``detour``, ``detour_steps``).
 
 A robot uses only its own estimate and goal, the map, and the estimates of the
 neighbours it sees (those in its local box R_loc). Every target is projected onto the
@@ -72,6 +76,8 @@ class LivenessParams:
     return_steps: most steps it drives back to its goal before holding again.
     right_hand_angle: how far [deg] a robot blocked by a neighbour turns its goal clockwise.
     face_near: a neighbour's face closer than this [m] to the estimate counts as blocking.
+    detour: blocked robots re-plan around neighbours that hold still (:mod:`.detour`).
+    detour_steps: the most steps one such re-plan lasts.
     """
 
     enabled: bool = False
@@ -88,6 +94,8 @@ class LivenessParams:
     return_steps: int = 200
     right_hand_angle: float = 45.0
     face_near: float = 0.5
+    detour: bool = True
+    detour_steps: int = 300
 
 
 @dataclass
@@ -244,14 +252,14 @@ def steering_goals(estimates: np.ndarray, goals: np.ndarray, arrived: np.ndarray
     """The goals a team of double integrators or unicycles steers to this step under the
     liveness rules, and which arrived robots move (``(N, 2)``, ``(N,)``).
 
-    The same three rules as the single-integrator controller
+    The same rules as the single-integrator controller
     (:func:`~robofleet.avoidance.controller.single_integrator_control`): the roadmap
     sub-goal instead of the goal (``navigation``), the right-hand turn when a
     neighbour's face blocks the projected goal, and yielding by arrived robots
     (:func:`parking_targets`). The model's own controller then projects the result onto
     the cell, so its in-cell guarantee is unchanged.
     """
-    heading = goals if navigation is None else navigation.step(estimates)[0]
+    heading = goals if navigation is None else navigation.step(estimates, arrived)[0]
     proj = project_onto_cells(heading, cells)
     turn = ~arrived & ~proj.empty & blocked_by_robot(estimates, proj.active, cells, params.face_near)
     if params.right_hand_angle > 0 and turn.any():

@@ -14,6 +14,7 @@ Every key is documented in :data:`RESULTS` (and thereby in ``FAMILY.results``).
 
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass
 
 import numpy as np
@@ -117,11 +118,23 @@ def close_pair_frequencies(positions: np.ndarray, radius: float, distance: float
     """
     close = contacts = 0
     for pts in positions:
-        pairs = geometry.close_pairs(pts, distance)
-        if len(pairs):
-            gaps = np.linalg.norm(pts[pairs[:, 0]] - pts[pairs[:, 1]], axis=1)
-            close += len(pairs)
-            contacts += int(np.count_nonzero(gaps < 2 * radius - metrics.CONTACT_TOL))
+        close_here, contacts_here = close_pair_counts(pts, radius, distance)
+        close += close_here
+        contacts += contacts_here
+    return close_pair_rate(close, contacts)
+
+
+def close_pair_counts(points: np.ndarray, radius: float, distance: float = CLOSE_PAIR_DISTANCE) -> tuple[int, int]:
+    """Close pairs (centres under ``distance``) of one state ``(N, d)`` and the contacts among them."""
+    pairs = geometry.close_pairs(points, distance)
+    if len(pairs) == 0:
+        return 0, 0
+    gaps = np.linalg.norm(points[pairs[:, 0]] - points[pairs[:, 1]], axis=1)
+    return len(pairs), int(np.count_nonzero(gaps < 2 * radius - metrics.CONTACT_TOL))
+
+
+def close_pair_rate(close: int, contacts: int) -> dict:
+    """``close_pair_steps`` and ``close_pair_step_rate`` from the counts over a run."""
     return {"close_pair_steps": int(close), "close_pair_step_rate": contacts / close if close else float("nan")}
 
 
@@ -135,6 +148,101 @@ def premise_shares(estimate_in_cell: np.ndarray, empty_cell: np.ndarray, arrival
     if count == 0:
         return {"estimate_in_cell_share": float("nan"), "empty_cell_share": float("nan")}
     return {"estimate_in_cell_share": float(estimate_in_cell[moving].mean()), "empty_cell_share": float(empty_cell[moving].mean())}
+
+
+class RunTally:
+    """The raw counts behind :data:`RESULTS`, gathered state by state (:meth:`add_state`)
+    and step by step (:meth:`add_step`) as a run goes, so that a run keeping only every
+    k-th state (``record_every``) is judged on every state all the same; the per-state
+    functions are those :func:`run_results` applies to a whole recorded run.
+
+    Parameters
+    ----------
+    radius:
+        Robot radius r_s.
+    workspace:
+        The 2-D workspace (its polygon obstacles), ``None`` in 3-D.
+    boxes:
+        The 3-D box obstacles (centres, sizes, yaws), ``None`` in 2-D.
+    """
+
+    def __init__(self, radius: float, workspace: Workspace | None, boxes: tuple[np.ndarray, np.ndarray, np.ndarray] | None):
+        self.radius, self.workspace, self.boxes = radius, workspace, boxes
+        self.pair_rows: list[np.ndarray] = []
+        self.pair_min: list[float] = []
+        self.obstacle_rows: list[np.ndarray] = []
+        self.obstacle_min: list[float] = []
+        self.close = self.close_contacts = 0
+        self.robot_steps = self.in_cell = self.empty = 0
+        self.seconds = 0.0
+
+    @property
+    def states(self) -> int:
+        """States tallied so far (steps + 1)."""
+        return len(self.pair_min)
+
+    def add_state(self, row: int, positions: np.ndarray) -> None:
+        """Tally the contacts and distances of the TRUE positions ``(N, d)`` after ``row`` steps."""
+        t0 = time.perf_counter()
+        state = np.asarray(positions, float)[None]
+        contacts, nearest = metrics.pair_contacts(state, self.radius)
+        self.pair_rows.append(at_step(contacts, row))
+        self.pair_min.append(float(nearest[0]))
+        if self.workspace is not None:
+            hits, distance = metrics.obstacle_contacts(state, self.radius, self.workspace)
+            self.obstacle_min.append(float(distance.min(initial=np.inf)))
+        else:
+            hits, distance = box_contacts(state, self.radius, self.boxes)
+            self.obstacle_min.append(distance)
+        self.obstacle_rows.append(at_step(hits, row))
+        close, close_contacts = close_pair_counts(state[0], self.radius)
+        self.close += close
+        self.close_contacts += close_contacts
+        self.seconds += time.perf_counter() - t0
+
+    def add_step(self, estimate_in_cell: np.ndarray, empty_cell: np.ndarray, moving: np.ndarray) -> None:
+        """Tally one step's premise flags over the robots still ``moving`` (not yet arrived)."""
+        self.robot_steps += int(np.count_nonzero(moving))
+        self.in_cell += int(np.count_nonzero(estimate_in_cell & moving))
+        self.empty += int(np.count_nonzero(empty_cell & moving))
+
+    def premise_shares(self) -> dict:
+        """:func:`premise_shares` from the tallied counts."""
+        if self.robot_steps == 0:
+            return {"estimate_in_cell_share": float("nan"), "empty_cell_share": float("nan")}
+        return {"estimate_in_cell_share": self.in_cell / self.robot_steps, "empty_cell_share": self.empty / self.robot_steps}
+
+    def results(self, *, dt: float, step_seconds: np.ndarray, arrivals: np.ndarray, counts: ControllerCounts, premise: bool) -> dict:
+        """Every per-run result of :data:`RESULTS` plus ``success`` (see :func:`run_results`);
+        ``premise`` False (a method without cells) gives ``nan`` shares."""
+        contacts, hits = np.concatenate(self.pair_rows), np.concatenate(self.obstacle_rows)
+        in_plane = self.workspace is not None
+        out = metrics.contact_summary(contacts, np.array(self.pair_min), hits if in_plane else np.empty((0, 2), np.intp),
+                                      np.array(self.obstacle_min) if in_plane else np.full(self.states, np.inf),
+                                      arrivals, dt, step_seconds, self.states - 1)
+        for core_key in ("n_steps", "n_robots"):
+            out.pop(core_key)
+        obstacle_hits = len(hits)
+        pair_contacts = out["collision_steps"] - obstacle_hits if in_plane else out["collision_steps"]
+        if not in_plane:
+            out["obstacle_collisions"] = int(len(np.unique(hits[:, 1])))
+            out["min_obstacle_distance"] = float(min(self.obstacle_min, default=np.inf))
+            out["collision_steps"] = int(pair_contacts + obstacle_hits)
+            out["success"] = bool(out["success"] and obstacle_hits == 0)
+        out.update(deadlock_detections=counts.deadlock_detections, livelock_detections=counts.livelock_detections,
+                   empty_cell_steps=counts.empty_cell_steps, mpc_fallback_steps=counts.mpc_fallback_steps,
+                   mpc_fallback_share=counts.mpc_fallback_steps / counts.mpc_solve_steps if counts.mpc_solve_steps else None)
+        out.update(collision_frequencies(len(arrivals), self.states, pair_contacts, out["collisions"], obstacle_hits))
+        out.update(close_pair_rate(self.close, self.close_contacts))
+        out.update(self.premise_shares() if premise else {"estimate_in_cell_share": float("nan"), "empty_cell_share": float("nan")})
+        return out
+
+
+def at_step(rows: np.ndarray, step: int) -> np.ndarray:
+    """Contact rows ``(step, ...)`` of a one-state run, stamped with the run's ``step``."""
+    rows = np.array(rows, np.intp)
+    rows[:, 0] = step
+    return rows
 
 
 def run_results(
@@ -171,28 +279,15 @@ def run_results(
         The recorded ``estimate_in_cell`` and ``empty_cell`` ``(T, N)`` arrays, ``None``
         for a method without cells (the shares are then ``nan``).
 
-    ``success`` is: every robot arrived and nothing touched (robots or obstacles).
+    Notes
+    -----
+    ``success`` is: every robot arrived and nothing touched (robots or obstacles). The
+    whole run is tallied as :class:`RunTally` tallies a run step by step.
     """
-    out = metrics.motion_summary(positions, goals, radius, dt, goal_tolerance, workspace, step_seconds, arrivals)
-    for core_key in ("n_steps", "n_robots"):
-        out.pop(core_key)
-    if workspace is not None:
-        obstacle_hits = len(metrics.obstacle_contacts(positions, radius, workspace)[0])
-        pair_contacts = out["collision_steps"] - obstacle_hits
-    else:
-        hits, nearest = box_contacts(positions, radius, boxes)
-        obstacle_hits, pair_contacts = len(hits), out["collision_steps"]
-        out["obstacle_collisions"] = int(len(np.unique(hits[:, 1])))
-        out["min_obstacle_distance"] = nearest
-        out["collision_steps"] = int(pair_contacts + obstacle_hits)
-        out["success"] = bool(out["success"] and obstacle_hits == 0)
-    out.update(deadlock_detections=counts.deadlock_detections, livelock_detections=counts.livelock_detections,
-               empty_cell_steps=counts.empty_cell_steps, mpc_fallback_steps=counts.mpc_fallback_steps,
-               mpc_fallback_share=counts.mpc_fallback_steps / counts.mpc_solve_steps if counts.mpc_solve_steps else None)
-    out.update(collision_frequencies(positions.shape[1], len(positions), pair_contacts, out["collisions"], obstacle_hits))
-    out.update(close_pair_frequencies(positions, radius))
-    if premise is None:
-        out.update(estimate_in_cell_share=float("nan"), empty_cell_share=float("nan"))
-    else:
-        out.update(premise_shares(*premise, arrivals))
-    return out
+    tally = RunTally(radius, workspace, boxes)
+    for row, state in enumerate(positions):
+        tally.add_state(row, state)
+    if premise is not None:
+        for k, (inside, empty) in enumerate(zip(*premise)):
+            tally.add_step(inside, empty, (arrivals < 0) | (k < arrivals))
+    return tally.results(dt=dt, step_seconds=step_seconds, arrivals=arrivals, counts=counts, premise=premise is not None)

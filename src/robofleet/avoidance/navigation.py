@@ -114,9 +114,11 @@ class Roadmap:
 
     def __init__(self, polygons: list[np.ndarray], margin: float, bounds: tuple[float, float, float, float], clearance: float):
         grown = grown_polygons(polygons, margin)
+        self.grown_planes = halfplanes(grown) if grown else Halfplanes(np.zeros((0, 1, 2)), np.zeros((0, 1)))
         self.sight = halfplanes(grown_polygons(polygons, 0.9 * clearance)) if polygons else Halfplanes(np.zeros((0, 1, 2)), np.zeros((0, 1)))
         nodes = np.concatenate(grown) if grown else np.zeros((0, 2))
         lo, hi = np.asarray(bounds[:2]) + clearance, np.asarray(bounds[2:]) - clearance
+        self.lower, self.upper = lo, hi
         keep = np.all((nodes >= lo) & (nodes <= hi), axis=1) & ~self._inside_grown(nodes, grown)
         self.nodes = nodes[keep]
         self.node_edges = self._visibility(self.nodes, self.nodes)
@@ -184,15 +186,20 @@ class Navigation:
     measure the deadlock detection uses instead of the straight distance to the goal.
     """
 
-    def __init__(self, roadmap: Roadmap, goals: np.ndarray):
-        self.roadmap, self.goals = roadmap, goals
+    def __init__(self, roadmap: Roadmap, goals: np.ndarray, detours=None):
+        self.roadmap, self.goals, self.detours = roadmap, goals, detours
         self.costs = roadmap.costs_to_goals(goals)
         self.last = goals.copy(), np.zeros(len(goals))
 
-    def step(self, estimates: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def step(self, estimates: np.ndarray, arrived: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Sub-goals and remaining path lengths; a robot that sees nothing (its estimate
-        inside a grown obstacle) keeps its previous sub-goal."""
+        inside a grown obstacle) keeps its previous sub-goal. With ``detours``
+        (:class:`.detour.Detours`) and ``arrived`` given, blocked robots re-plan around
+        the neighbours that hold still."""
         sub, rest, seen = self.roadmap.subgoals(estimates, self.goals, self.costs)
         sub, rest = np.where(seen[:, None], sub, self.last[0]), np.where(seen, rest, self.last[1])
         self.last = sub, rest
-        return sub, np.linalg.norm(sub - estimates, axis=1) + rest
+        to_go = np.linalg.norm(sub - estimates, axis=1) + rest
+        if self.detours is None or arrived is None:
+            return sub, to_go
+        return self.detours.apply(estimates, arrived, sub, to_go)

@@ -1,12 +1,21 @@
 """Uniform-grid neighbour search in the plane, compiled, for the cell builder and ORCA.
 
-Points are bucketed into square cells of side ``h``; a hash table maps each occupied
-cell ``(c_x, c_y)`` to its run in the point order sorted by cell (a counting sort, so
-points of one cell stay in increasing index order). Building is O(N) (one pass to hash
-the cells, one counting sort); a query visits the few cells around a point, so the
-neighbours of all N points cost O(N · k) for k points per neighbourhood — no sort of
-the whole set and no tree. The occupied cells, not the bounding box, set the memory:
-a million robots spread on a circle of 127 km need one table entry per occupied cell.
+Points are bucketed into square cells of side ``h``. Two layouts of the same buckets:
+
+* :func:`sort_by_cell` (box neighbours, the cell builder): points sorted by cell key
+  ``c_x · rows + c_y`` with two stable counting sorts (by ``c_y``, then ``c_x``), so the
+  3×3 cells around a cell are three runs of consecutive keys and a robot's candidates
+  are three contiguous slices of the sorted points; a pass over the cells in key order
+  finds those runs by moving six cursors forward (:func:`column_runs`), with no hash
+  table to probe.
+* :func:`build_grid` (k nearest, ORCA): a hash table maps each occupied cell to its run
+  in the point order sorted by cell (a counting sort, points of one cell in increasing
+  index order).
+
+Building either is O(N); a query visits the few cells around a point, so the
+neighbours of all N points cost O(N · k) for k points per neighbourhood — no tree. The
+occupied cells, not the bounding box, set the memory: a million robots spread on a
+circle of 127 km need one entry per occupied cell.
 
 Every query is per point and reads the grid only, so the queries run in parallel
 (``numba.prange``, :mod:`.kernels`) and give the same result whatever the number of
@@ -139,8 +148,110 @@ def around(c, reach, rows, table_keys, table_cells, cell_xy, runs):
 
 
 # ---------------------------------------------------------------------------------------
-# box neighbours (the cell builder: |p_i − p_j|_∞ ≤ R_loc)
+# box neighbours (the cell builder: |p_i − p_j|_∞ ≤ R_loc): points sorted by cell key
 # ---------------------------------------------------------------------------------------
+class CellRuns(NamedTuple):
+    """Points sorted by cell key ``c_x · rows + c_y`` (column-major, ties by index): the
+    3×3 cells around a cell are three runs of consecutive keys, one per column, so a
+    robot's box neighbours are read from three contiguous slices of ``sorted_points``
+    found by binary search over the occupied keys, with no hash table to probe."""
+
+    rows: np.int64  # number of cell rows (c_y range)
+    cell_key: np.ndarray  # (C,) occupied cell keys, increasing
+    start: np.ndarray  # (C + 1,) run of each occupied cell in ``order``
+    order: np.ndarray  # (N,) point indices sorted by (cell key, index)
+    sorted_points: np.ndarray  # (N, 2) the points in that order
+
+
+def sort_by_cell(points: np.ndarray, h: float) -> CellRuns:
+    """Sort ``points (N, 2)`` by the key of their cell of side ``h > 0`` (O(N): two stable
+    counting-sort passes, by c_y then c_x, when the bounding box spans at most a few N
+    cells per axis; a stable comparison sort of the keys otherwise)."""
+    pts = np.ascontiguousarray(points, dtype=np.float64)
+    origin, top = _bounds(pts)
+    cols, rows = (np.int64(np.floor((top[a] - origin[a]) / h)) + 1 for a in (0, 1))
+    cx, cy = _cell_coordinates(pts, origin, float(h))
+    if max(cols, rows) <= 4 * len(pts) + 1024:
+        order = _counting_sort(cx, cols, _counting_sort(cy, rows, np.arange(len(pts))))
+    else:
+        order = np.argsort(cx * rows + cy, kind="stable")
+    cell_key, start, sorted_points = _runs(pts, order, cx, cy, rows)
+    return CellRuns(rows, cell_key, start, order, sorted_points)
+
+
+@numba.njit(cache=True)
+def _cell_coordinates(pts, origin, h):
+    cx, cy = np.empty(len(pts), np.int64), np.empty(len(pts), np.int64)
+    for i in range(len(pts)):
+        cx[i], cy[i] = cell_of(pts[i, 0], pts[i, 1], origin, h)
+    return cx, cy
+
+
+@numba.njit(cache=True)
+def _counting_sort(digit, buckets, order):
+    """``order`` stably re-sorted by ``digit[order]`` (values in ``0 … buckets − 1``)."""
+    start = np.zeros(buckets + 1, np.int64)
+    for i in order:
+        start[digit[i] + 1] += 1
+    for c in range(buckets):
+        start[c + 1] += start[c]
+    out = np.empty(len(order), np.int64)
+    for i in order:
+        out[start[digit[i]]] = i
+        start[digit[i]] += 1
+    return out
+
+
+@numba.njit(cache=True)
+def _runs(pts, order, cx, cy, rows):
+    """Occupied keys, their runs in ``order`` and the sorted points."""
+    n = len(order)
+    cell_key = np.empty(n, np.int64)
+    start = np.empty(n + 1, np.int64)
+    sorted_points = np.empty((n, 2))
+    cells = 0
+    for m in range(n):
+        i = order[m]
+        key = cx[i] * rows + cy[i]
+        if cells == 0 or cell_key[cells - 1] != key:
+            cell_key[cells], start[cells] = key, m
+            cells += 1
+        sorted_points[m, 0], sorted_points[m, 1] = pts[i, 0], pts[i, 1]
+    start[cells] = n
+    return cell_key[:cells].copy(), start[:cells + 1].copy(), sorted_points
+
+
+@numba.njit(cache=True, inline="always")
+def column_runs(c, rows, cell_key, cstart, cursor, fresh, runs):
+    """The runs ``[runs[2q], runs[2q + 1])`` of sorted points in column ``c_x + q − 1`` and
+    rows ``c_y − 1 … c_y + 1`` (clipped to the grid) around occupied cell ``c``.
+
+    ``cursor (6,)`` holds the occupied-cell bounds of those runs. Both bounds of every
+    column grow with the key, so a pass over cells in increasing order moves them forward
+    from the previous cell's; ``fresh`` (the first cell of a pass) finds them by binary
+    search instead."""
+    key = cell_key[c]
+    cy = key % rows
+    below, above = max(cy - 1, 0) - cy, min(cy + 1, rows - 1) - cy
+    for q in range(3):
+        centre = key + (q - 1) * rows
+        if fresh:
+            cursor[2 * q] = np.searchsorted(cell_key, centre + below)
+            cursor[2 * q + 1] = np.searchsorted(cell_key, centre + above, side="right")
+        else:
+            cursor[2 * q] = _first_at_least(cell_key, cursor[2 * q], centre + below)
+            cursor[2 * q + 1] = _first_at_least(cell_key, max(cursor[2 * q + 1], cursor[2 * q]), centre + above + 1)
+        runs[2 * q], runs[2 * q + 1] = cstart[cursor[2 * q]], cstart[cursor[2 * q + 1]]
+
+
+@numba.njit(cache=True, inline="always")
+def _first_at_least(keys, k, target):
+    """The first index from ``k`` on whose key is at least ``target`` (``len(keys)`` if none)."""
+    while k < len(keys) and keys[k] < target:
+        k += 1
+    return k
+
+
 def box_neighbours(points: np.ndarray, half_width: float) -> tuple[np.ndarray, np.ndarray]:
     """For every point, the other points ``j`` with ``‖p_i − p_j‖_∞ ≤ half_width``, in CSR
     form: ``(start (N + 1,), index (start[-1],))``, each point's neighbours in increasing
@@ -149,24 +260,24 @@ def box_neighbours(points: np.ndarray, half_width: float) -> tuple[np.ndarray, n
     pts = np.ascontiguousarray(points, dtype=np.float64)
     if len(pts) == 0:
         return np.zeros(1, np.int64), np.zeros(0, np.int64)
-    g = build_grid(pts, half_width)
+    g = sort_by_cell(pts, half_width)
     start = np.zeros(len(pts) + 1, np.int64)
-    _box_csr(half_width, g.rows, g.table_keys, g.table_cells, g.cell_xy, g.start, g.order, g.sorted_points, start, np.empty(0, np.int64), False)
+    _box_csr(half_width, *g, start, np.empty(0, np.int64), False)
     np.cumsum(start[1:], out=start[1:])
     index = np.empty(start[-1], np.int64)
-    _box_csr(half_width, g.rows, g.table_keys, g.table_cells, g.cell_xy, g.start, g.order, g.sorted_points, start, index, True)
+    _box_csr(half_width, *g, start, index, True)
     return start, index
 
 
 @numba.njit(cache=True)
-def _box_csr(r, rows, table_keys, table_cells, cell_xy, cstart, order, spts, start, index, write):
+def _box_csr(r, rows, cell_key, cstart, order, spts, start, index, write):
     """Count each point's box neighbours into ``start[i]`` or (``write``) store them sorted."""
-    runs = np.empty(9, np.int64)
+    runs, cursor = np.empty(6, np.int64), np.empty(6, np.int64)
     buf = np.empty(len(order), np.int64)  # serial: one buffer large enough for any point
     for c in range(len(cstart) - 1):
-        around(c, 1, rows, table_keys, table_cells, cell_xy, runs)
+        column_runs(c, rows, cell_key, cstart, cursor, c == 0, runs)
         for m in range(cstart[c], cstart[c + 1]):
-            k = box_gather(m, r, runs, cstart, order, spts, buf)
+            k = box_gather(m, r, runs, order, spts, buf)
             i = order[m]
             if write:
                 insertion_sort(buf[:k])
@@ -176,16 +287,14 @@ def _box_csr(r, rows, table_keys, table_cells, cell_xy, cstart, order, spts, sta
 
 
 @numba.njit(cache=True, inline="always")
-def box_gather(m, r, runs, cstart, order, spts, out):
+def box_gather(m, r, runs, order, spts, out):
     """The box neighbours (``‖·‖_∞ ≤ r``) of sorted point ``m`` into ``out`` (unsorted, as many
-    as fit), with ``runs`` the 3×3 cells around its cell (:func:`around`); returns their count."""
+    as fit), with ``runs`` the three column runs around its cell (:func:`column_runs`);
+    returns their count."""
     x, y = spts[m, 0], spts[m, 1]
     k = 0
-    for q in range(9):
-        cc = runs[q]
-        if cc < 0:
-            continue
-        for mm in range(cstart[cc], cstart[cc + 1]):
+    for q in range(3):
+        for mm in range(runs[2 * q], runs[2 * q + 1]):
             if mm != m and max(abs(spts[mm, 0] - x), abs(spts[mm, 1] - y)) <= r:
                 if k < len(out):
                     out[k] = order[mm]

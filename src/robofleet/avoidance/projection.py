@@ -143,6 +143,42 @@ def _project_one(i, goals, A, b, valid, point, empty, active, slack):
         empty[i] = True
 
 
+def steer(estimates: np.ndarray, proj: Projection, v_max: float | np.ndarray, dt: float, hold: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The one-step controller's command toward the projected goals (appendix C):
+    ``u = min(v_max, ‖g* − p̂‖/Δt) · (g* − p̂)/‖g* − p̂‖``, zero for an empty cell, a
+    distance under 1e-12 or a robot in ``hold``; one compiled pass, rounded as the numpy
+    expressions ``np.where`` / ``np.linalg.norm`` / ``np.minimum`` would round it.
+
+    Returns ``u (N, 2)``, its norm ``(N,)`` and the distance to the projected goal
+    (``inf`` for an empty cell: the deadlock test's "sitting" input).
+    """
+    n = len(estimates)
+    u, speed, move = np.empty((n, 2)), np.empty(n), np.empty(n)
+    limit = np.ascontiguousarray(np.broadcast_to(np.asarray(v_max, dtype=np.float64), (n,)))
+    _steer(np.ascontiguousarray(estimates, dtype=np.float64), proj.point, proj.empty, limit, float(dt),
+           np.ascontiguousarray(hold, dtype=np.bool_), u, speed, move)
+    return u, speed, move
+
+
+@numba.njit(cache=True)
+def _steer(estimates, point, empty, v_max, dt, hold, u, speed, move):
+    for i in range(len(estimates)):
+        if empty[i]:  # the target is the estimate itself: p̂ − p̂ = 0
+            d0, d1 = estimates[i, 0] - estimates[i, 0], estimates[i, 1] - estimates[i, 1]
+        else:
+            d0, d1 = point[i, 0] - estimates[i, 0], point[i, 1] - estimates[i, 1]
+        dist = np.sqrt(d0 * d0 + d1 * d1)
+        limit, reach = v_max[i], dist / dt
+        pace = limit if limit != limit else reach if reach != reach else min(limit, reach)  # np.minimum propagates NaN
+        u0 = u1 = 0.0
+        if dist > 1e-12 and not hold[i]:
+            factor = pace / max(dist, 1e-300)
+            u0, u1 = d0 * factor, d1 * factor
+        u[i, 0], u[i, 1] = u0, u1
+        speed[i] = np.sqrt(u0 * u0 + u1 * u1)
+        move[i] = np.inf if empty[i] else dist
+
+
 # -- input validation of project_onto_cells (types and shapes only: it runs every step) -------
 def check_projection_inputs(goals: object, cells: object) -> None:
     """One-line :class:`~robofleet.core.errors.ConfigError` s for arguments of the wrong kind or shape."""

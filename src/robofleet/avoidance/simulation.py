@@ -22,7 +22,10 @@ heuristic of appendix C (:mod:`.controller`); double integrators — the braking
 
 In a 3-D space every robot's cell is built in R³ from all estimates; ground robots
 (every model but the quadrotor) move in the plane ``z = z_g`` (floor + r_s) and use their
-cell's section with that plane (:func:`ground_section`).
+cell's section with that plane (:func:`ground_section`). Their Σ has no z term, so the
+planes between robots of such a fleet come from ``σ² I`` and only the buffers from Σ
+(:func:`separator_covariances`); their liveness roadmap runs around the footprints of the
+boxes that reach their plane (:func:`ground_footprints`).
 
 The authors' main setup — one 2-D team of single integrators under the one-step
 controller — is the same loop with one team whose rows are views of the fleet's cells
@@ -38,6 +41,7 @@ import numpy as np
 from shapely.geometry import Polygon
 
 from ..core.family import expect_spec
+from ..core.geometry import box_vertices
 from ..core.recorder import Recorder
 from ..core.rng import as_generator, resolve_seed
 from ..core.trace import Trace, to_plain
@@ -48,17 +52,28 @@ from ..dynamics import unicycle as uni
 from .braking import braking_control, braking_rule
 from .buffer import buffer, confidence_quantile, shadow_epsilon
 from .cell import CellGeometry, Cells, Kind, build_cells
-from .cell3d import box_shadow_planes, project_onto_polytope, workspace_box_planes
-from .controller import ControllerState, DeadlockParams, cell_rows, single_integrator_control
-from .liveness import LivenessParams, ParkingState, steering_goals
+from .cell3d import (
+    box_shadow_planes,
+    project_onto_polytope,
+    shadow_radius,
+    workspace_box_planes,
+)
+from .controller import (
+    ControllerState,
+    DeadlockParams,
+    cell_rows,
+    single_integrator_control,
+)
+from .detour import DetourParams, Detours
 from .diff_drive import three_projection_control
-from .metrics import ControllerCounts, run_results
+from .liveness import LivenessParams, ParkingState, steering_goals
+from .metrics import ControllerCounts, RunTally
 from .mpc import BuavcMPC, GoalRotation, SingleIntegratorParams
 from .navigation import Navigation, Roadmap
 from .obstacles import ObstacleSet, wall_planes
 from .orca import orca_velocities, preferred_velocities
 from .projection import project_onto_cells
-from .spec import Spec, TeamSpec, initial_layout
+from .spec import Space3DSpec, Spec, TeamSpec, initial_layout
 
 RECORD_CELLS_MAX_ROBOTS = 64
 """Cells are recorded by default for fleets up to this size (``record_cells`` overrides)."""
@@ -185,7 +200,11 @@ class BoxObstacles:
 class CellModel:
     """What every robot's B-UAVC is built from (Sec. 4): each estimate's covariance Σ_i
     and safety radius, the buffer quantile, the walls and the obstacles with their
-    shadows (2-D polygons in ``geometry``, 3-D boxes in ``boxes``), the local box R_loc."""
+    shadows (2-D polygons in ``geometry``, 3-D boxes in ``boxes``), the local box R_loc.
+
+    ``separator_covs`` (3-D teams with ground robots, :func:`separator_covariances`) are the
+    covariances the pairwise separating planes are computed from when they differ from Σ_i;
+    the buffers β always use Σ_i."""
 
     covs: np.ndarray
     radius: np.ndarray
@@ -193,6 +212,7 @@ class CellModel:
     geometry: CellGeometry
     local_box: float
     boxes: BoxObstacles | None = None
+    separator_covs: np.ndarray | None = None
 
     def cells(self, estimates: np.ndarray, obstacle_shift: np.ndarray) -> Cells:
         """The cells of all robots from their estimates ``(N, d)`` and the obstacles'
@@ -200,8 +220,17 @@ class CellModel:
         if self.boxes is None:
             geometry = replace(self.geometry, obstacles=shifted(self.geometry.obstacles, obstacle_shift))
             return build_cells(estimates, self.covs, self.radius, self.quantile, geometry, self.local_box)
-        cells = build_cells(estimates, self.covs, self.radius, self.quantile, self.geometry, self.local_box)
+        if self.separator_covs is None:
+            cells = build_cells(estimates, self.covs, self.radius, self.quantile, self.geometry, self.local_box)
+        else:
+            cells = self.rebuffered(build_cells(estimates, self.separator_covs, self.radius, self.quantile, self.geometry, self.local_box))
         return cells if self.boxes.count == 0 else self.with_box_rows(cells, estimates, obstacle_shift)
+
+    def rebuffered(self, cells: Cells) -> Cells:
+        """``cells`` built with ``separator_covs``, their buffers replaced by those of Σ_i:
+        ``b + q (√(aᵀ Σ_sep a) − √(aᵀ Σ_i a))`` (the planes stay, so the pair's two rows stay reciprocal)."""
+        b = cells.b + buffer(cells.A, self.separator_covs[:, None], 0.0, self.quantile) - buffer(cells.A, self.covs[:, None], 0.0, self.quantile)
+        return replace(cells, b=np.where(cells.valid, b, cells.b))
 
     def with_box_rows(self, cells: Cells, estimates: np.ndarray, shift: np.ndarray) -> Cells:
         """``cells`` plus one row per box inside each robot's local box: the max-margin plane
@@ -248,7 +277,37 @@ def cell_model(spec: Spec, setup: MethodSetup) -> CellModel:
     geometry = CellGeometry(no_polygons, *workspace_box_planes(space.lower, space.upper))
     box_cov = setup.cell_covariance(space.obstacle_sigma**2 * np.eye(3))
     boxes = BoxObstacles(*space.box_arrays(), box_cov, setup.epsilon)
-    return CellModel(covs, radius, setup.quantile, geometry, spec.local_box, boxes)
+    return CellModel(covs, radius, setup.quantile, geometry, spec.local_box, boxes, separator_covariances(spec, setup, covs))
+
+
+def separator_covariances(spec: Spec, setup: MethodSetup, covs: np.ndarray) -> np.ndarray | None:
+    """The covariances the separating planes of a 3-D fleet with ground robots are computed
+    from: ``σ² I`` for every robot (``None`` when every robot flies: Σ_i itself).
+
+    A ground robot's Σ_i = σ² diag(1, 1, 0) is singular: its z is known exactly. Appendix B's
+    minimax separator against a flying robot then tends to the horizontal plane through the
+    ground robot's estimate (a horizontal normal misclassifies it with probability 0 at any
+    offset), which leaves its section empty after the buffer r_s, however high the flying
+    robot is. Any plane that both robots compute alike keeps the chance constraint (the
+    argument of notes/buavc.md "Buffer" holds for every plane once β uses the true Σ_i), so
+    the plane is taken from ``σ² I`` — for equal σ the perpendicular bisector, the ordinary
+    Voronoi face, which gives each robot half the distance — and β from Σ_i
+    (:meth:`CellModel.rebuffered`)."""
+    teams = spec.team_specs()
+    if all(team.flying for team in teams):
+        return None
+    out = np.empty_like(covs)
+    for team, sl in zip(teams, spec.team_slices()):
+        out[sl] = setup.cell_covariance(team.sigma**2 * np.eye(3))
+    return out
+
+
+def ground_footprints(space: Space3DSpec, z: float, radius: float) -> list[np.ndarray]:
+    """Footprints ``(4, 2)`` of the boxes of a 3-D space that a ground robot (a sphere of
+    ``radius`` centred at height ``z``) can touch: the 2-D obstacles of ground teams."""
+    centers, sizes, yaws = space.box_arrays()
+    reach = np.abs(centers[:, 2] - z) < 0.5 * sizes[:, 2] + radius
+    return [box_vertices(c, s, y) for c, s, y, r in zip(centers, sizes, yaws, reach) if r]
 
 
 def ground_section(cells: Cells, z: float) -> Cells:
@@ -439,13 +498,28 @@ class World:
 
     # -- set-up ---------------------------------------------------------------------------
     def obstacle_clearance(self, team: TeamSpec) -> float | None:
-        """The whole clearance a 2-D team's cells keep from the nominal obstacles (r_s,
-        the chance buffer, the ε-shadow); ``None`` without cells or in 3-D."""
-        if self.cell_model is None or self.dim == 3:
+        """The whole clearance a 2-D or ground team's cells keep from the nominal obstacles
+        (r_s, the chance buffer, the ε-shadow); ``None`` without cells or for flying teams.
+        In 3-D the ε-shadow of a box is ``√(χ²₃⁻¹(1 − ε)) σ_o`` (appendix A, Lemma 1)."""
+        if self.cell_model is None or (self.dim == 3 and team.flying):
             return None
         sigma = team.largest_sigma() if self.setup.chance_constrained else 0.0
-        return obstacle_clearance(self.setup.cell_radius(self.spec.robots.radius, team.largest_sigma()), sigma, self.setup.quantile,
-                                  self.cell_model.geometry.obstacles, self.spec.workspace.obstacle_covariance())
+        radius = self.setup.cell_radius(self.spec.robots.radius, team.largest_sigma())
+        if self.dim == 3:
+            sigma_o = self.spec.space3d.obstacle_sigma if self.setup.chance_constrained else 0.0
+            return radius + self.setup.quantile * sigma + shadow_radius(self.setup.epsilon, 3) * sigma_o
+        return obstacle_clearance(radius, sigma, self.setup.quantile, self.cell_model.geometry.obstacles, self.spec.workspace.obstacle_covariance())
+
+    def plane_obstacles(self) -> tuple[list[np.ndarray], tuple[float, float, float, float]]:
+        """The obstacle polygons 2-D and ground teams drive around and the workspace's
+        ``(x_min, y_min, x_max, y_max)``: in 3-D the footprints of the boxes that reach the
+        ground robots' plane (:func:`ground_footprints`)."""
+        if self.spec.space3d is None:
+            corners = self.spec.workspace.bounds_vertices()
+            return self.spec.workspace.obstacle_polygons(), (*corners.min(axis=0), *corners.max(axis=0))
+        space = self.spec.space3d
+        bounds = (space.lower[0], space.lower[1], space.upper[0], space.upper[1])
+        return ground_footprints(space, self.spec.ground_height(), self.spec.robots.radius), bounds
 
     def detour_vertices(self, team: TeamSpec) -> np.ndarray | None:
         """Appendix C detour targets of a 2-D single-integrator team: the obstacles grown
@@ -453,18 +527,31 @@ class World:
         clearance = self.obstacle_clearance(team)
         if clearance is None or team.model.kind != "single_integrator" or team.model.controller != "one_step":
             return None
-        return grown_obstacle_vertices(self.spec.workspace.obstacle_polygons(), 1.05 * clearance)
+        return grown_obstacle_vertices(self.plane_obstacles()[0], 1.05 * clearance)
 
     def navigation(self, team: TeamSpec, goals: np.ndarray) -> Navigation | None:
-        """The roadmap sub-goals of a 2-D team (:mod:`.navigation`) when liveness asks for
-        them and there are obstacles: nodes at 1.15 × the team's obstacle clearance."""
+        """The roadmap sub-goals of a 2-D or ground team (:mod:`.navigation`) when liveness
+        asks for them and there are obstacles: nodes at 1.15 × the team's obstacle clearance."""
         clearance = self.obstacle_clearance(team)
-        polygons = self.spec.workspace.obstacle_polygons()
+        polygons, bounds = self.plane_obstacles()
         if clearance is None or not polygons or not (self.liveness.enabled and self.liveness.roadmap):
             return None
-        corners = self.spec.workspace.bounds_vertices()
-        bounds = (*corners.min(axis=0), *corners.max(axis=0))
-        return Navigation(Roadmap(polygons, 1.15 * clearance, bounds, clearance), goals[:, :2])
+        roadmap = Roadmap(polygons, 1.15 * clearance, bounds, clearance)
+        return Navigation(roadmap, goals[:, :2], self.detours(team, roadmap, goals[:, :2]))
+
+    def detours(self, team: TeamSpec, roadmap: Roadmap, goals: np.ndarray) -> Detours | None:
+        """The detour rule of :mod:`.detour` (when liveness asks for it), its discs the
+        pair clearance ``2 β`` the cells keep between two estimates (r_s + the chance buffer,
+        twice). Not for unicycles, as the right-hand rule: on the mixed ground/air team
+        (differential-drive ground robots) detours lowered success at σ × 0.5 from 20/20
+        to 16/20 (``benchmarks/mpc_3d.py``, seeds 0–19), without changing σ × 1 or × 2."""
+        if not self.liveness.detour or team.model.kind == "unicycle":
+            return None
+        sigma = team.largest_sigma() if self.setup.chance_constrained else 0.0
+        pair = 2.0 * (self.setup.cell_radius(self.spec.robots.radius, sigma) + self.setup.quantile * sigma)
+        params = DetourParams(still_radius=self.liveness.still_radius, still_steps=self.liveness.still_steps,
+                              detour_steps=self.liveness.detour_steps)
+        return Detours(roadmap, goals, pair, self.spec.local_box, params)
 
     def position_noise_factor(self, teams: tuple[TeamSpec, ...], slices: list[slice]) -> np.ndarray:
         """``L`` with ``L Lᵀ = Σ``: one ``(d, d)`` factor for one team, else ``(N, d, d)``."""
@@ -702,7 +789,10 @@ def simulate(spec: Spec, seed: int | None = None, progress: bool = False) -> Tra
         no cells); 2-D runs with
         cells record ``cell_A``/``cell_b`` (default for N ≤ 64); runs with an MPC team record
         ``mpc_status (T, N)`` int8 (0 solved, 1 fallback, 2 arrived and holding, −1 no MPC). Events ``arrived``,
-        ``deadlock``, ``empty_cell``. Results: :data:`~robofleet.avoidance.metrics.RESULTS`. Metadata
+        ``deadlock``, ``empty_cell``. Results: :data:`~robofleet.avoidance.metrics.RESULTS`,
+        judged on every step (:class:`~robofleet.avoidance.metrics.RunTally`) even when the
+        spec's ``record_every`` k > 1 keeps only the rows of steps 0, k, 2k, … (the run is
+        the same whatever k). Metadata
         ``loop_seconds``: the step loop's wall time alone (without the set-up and the
         per-run results).
     """
@@ -710,8 +800,10 @@ def simulate(spec: Spec, seed: int | None = None, progress: bool = False) -> Tra
     seed = resolve_seed(seed)
     rng = as_generator(seed)
     world = World(spec, rng)
-    rec = Recorder(spec.max_steps, world.n, label=f"{spec.method} · {world.n} robots", progress=progress)
-    rec.state("positions", (world.n, world.dim), initial=world.positions())
+    rec = Recorder(spec.max_steps, world.n, label=f"{spec.method} · {world.n} robots", progress=progress, record_every=spec.record_every)
+    workspace = spec.workspace.build() if spec.space3d is None else None
+    tally = RunTally(spec.robots.radius, workspace, spec.space3d.box_arrays() if spec.space3d is not None else None)
+    rec.state("positions", (world.n, world.dim), initial=world.positions(), watch=tally.add_state)  # results judge every step
     if world.has_headings:
         rec.state("headings", (world.n,), initial=world.headings())
     rec.step("estimates", (world.n, world.dim))
@@ -719,17 +811,20 @@ def simulate(spec: Spec, seed: int | None = None, progress: bool = False) -> Tra
     rec.step("estimate_in_cell", (world.n,), dtype=bool, fill=False)
     rec.step("empty_cell", (world.n,), dtype=bool, fill=False)
     cell_log: list | None = [] if records_cells(spec, world) else None
+    last_estimates = [world.positions()]
     if world.has_mpc:
         rec.step("mpc_status", (world.n,), dtype=np.int8, fill=MPC_NO_MPC)
 
     def step(k: int) -> bool:
-        estimates = rec["positions"][k] + world.position_noise(rng)
+        estimates = world.positions() + world.position_noise(rng)
+        last_estimates[0] = estimates
         shift = world.obstacle_shift(rng)
         with rec.timed(k):
             cells, controls, flags = world.decide(estimates, shift)
         flags = world.measure_premise(cells, estimates, flags)
         world.advance(controls)
         rec.put(k, estimates=estimates, controls=controls, estimate_in_cell=flags.estimate_in_cell, empty_cell=flags.cell_empty)
+        tally.add_step(flags.estimate_in_cell, flags.cell_empty, rec.arrival_steps < 0)  # before arrive(k + 1): robots not yet arrived
         if world.has_mpc:
             rec.put(k, mpc_status=world.mpc_status)
         rec.put_state(k + 1, positions=world.positions())
@@ -738,22 +833,18 @@ def simulate(spec: Spec, seed: int | None = None, progress: bool = False) -> Tra
         rec.arrive(k + 1, world.arrived())
         rec.events_for(k, "deadlock", flags.deadlocked)
         rec.events_for(k, "empty_cell", flags.empty)
-        if cell_log is not None:
+        if cell_log is not None and rec.records(k):
             cell_log.append((cells.A, cells.b))
         return rec.all_arrived and world.settled(estimates)
 
     rec.run(step)
-    loop_seconds = rec.wall_seconds
+    loop_seconds = rec.wall_seconds - tally.seconds  # the step loop without tallying the per-run results
     if cell_log:
         record_cell_log(rec, cell_log)
     arrays = rec.arrays()
-    workspace = spec.workspace.build() if spec.space3d is None else None
     counts = replace(world.counts(), empty_cell_steps=sum(e["kind"] == "empty_cell" for e in rec.events))
-    results = run_results(arrays["positions"], world.goals, radius=spec.robots.radius, dt=spec.dt, goal_tolerance=spec.goal_tolerance,
-                          workspace=workspace, boxes=spec.space3d.box_arrays() if spec.space3d is not None else None,
-                          step_seconds=arrays["step_seconds"], arrivals=arrays["arrival_steps"], counts=counts,
-                          premise=None if world.cell_model is None else (arrays["estimate_in_cell"], arrays["empty_cell"]))
-    last = arrays["estimates"][-1] if len(arrays["estimates"]) else world.positions()
-    results["success"] = bool(results["success"] and world.settled(last))  # nobody left stepped aside
+    results = tally.results(dt=spec.dt, step_seconds=arrays["step_seconds"], arrivals=arrays["arrival_steps"], counts=counts,
+                            premise=world.cell_model is not None)
+    results["success"] = bool(results["success"] and world.settled(last_estimates[0]))  # nobody left stepped aside
     metadata = {**world.metadata(), "loop_seconds": loop_seconds}
     return rec.trace("avoidance", scenario=spec.scenario_name, seed=seed, metadata=metadata, results=results, workspace=workspace)

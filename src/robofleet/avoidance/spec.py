@@ -54,7 +54,7 @@ from ..core import extras, geometry
 from ..core.budget import RunSize
 from ..core.config import SpecModel
 from ..core.errors import ScenarioError
-from ..core.spec_blocks import WorkspaceSpec, is_convex
+from ..core.spec_blocks import RecordingSpec, WorkspaceSpec, is_convex
 from ..core.workspace import Workspace
 from ..dynamics.quadrotor import QuadrotorParams
 from .buffer import MIN_DELTA, confidence_quantile, shadow_epsilon
@@ -385,12 +385,14 @@ class LivenessSpec(SpecModel):
     return_steps: int = Field(200, ge=1)
     right_hand_angle: float = Field(45.0, ge=0, lt=90)
     face_near: float = Field(0.5, ge=0)
+    detour: bool = True
+    detour_steps: int = Field(300, ge=1)
 
 
 # ---------------------------------------------------------------------------------------
 # the scenario
 # ---------------------------------------------------------------------------------------
-class Spec(SpecModel):
+class Spec(RecordingSpec):
     """A B-UAVC scenario (Zhu et al. 2022): method, chance threshold δ, workspace (2-D
     ``workspace`` or 3-D ``space3d``) and teams (``robots`` + ``model``, or ``teams``)."""
 
@@ -479,7 +481,8 @@ class Spec(SpecModel):
         mpc = sum(t.n * t.model.mpc.horizon * (t.model.mpc.max_constraints + MPC_STAGE_ROWS) for t in teams if t.model.controller == "mpc")
         extra = 8 * (2 + d) * window * n + MPC_ROW_BYTES * mpc
         return RunSize(self.max_steps, n, per_robot, "max_steps", "teams.n" if self.teams else "robots.n", extra,
-                       "deadlock windows and MPC problems", "deadlock.window, model.mpc.horizon, model.mpc.max_constraints")
+                       "deadlock windows and MPC problems", "deadlock.window, model.mpc.horizon, model.mpc.max_constraints",
+                       record_every=self.record_every)
 
 
 # ---------------------------------------------------------------------------------------

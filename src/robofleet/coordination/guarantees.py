@@ -1,5 +1,6 @@
 """Checks of the theory's preconditions (the label-flipping deadlock paper (2021), Definition 4 and Theorem 4), and
-:func:`check`, what ``robofleet check`` prints for a scenario.
+:func:`check`, what ``robofleet check`` prints for a scenario (the plan checks themselves
+live in :mod:`.theory`, which the instance cache also uses).
 
 * Definition 4 — *non-conflicting* trajectories: no robot's path comes within ``2r`` of
   another robot's start or goal. Then (Theorems 1, 2) a deadlock happens exactly when
@@ -16,99 +17,16 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-
-import numpy as np
-from scipy.spatial import cKDTree
-
-from ..core import arguments
 from ..core.family import Guarantee, expect_spec
 from .coordination_space import CoordinationSpace
 from .instance import prepare_instance
 from .plan_execution import Method
 from .segment_graph import Resolution
 from .spec import Spec
+from .theory import Conflict, Overlap, TheoryReport, check_theory, conflicts, segment_overlaps
 from .trajectories import Trajectories
 
-
-@dataclass(frozen=True)
-class Conflict:
-    """Robot ``robot`` at its step ``step`` is closer than ``2r`` to the ``which`` of ``other``."""
-
-    robot: int
-    step: int
-    other: int
-    which: str  # "start" or "goal"
-
-
-@dataclass(frozen=True)
-class Overlap:
-    """Two collision segments of ``robot`` that share steps (or touch)."""
-
-    robot: int
-    first: tuple[int, int]
-    second: tuple[int, int]
-    others: tuple[int, int]
-
-
-@dataclass(frozen=True)
-class TheoryReport:
-    """Outcome of :func:`check_theory`."""
-
-    non_conflicting: bool
-    disjoint_segments: bool
-    conflicts: list[Conflict] = field(default_factory=list)
-    overlaps: list[Overlap] = field(default_factory=list)
-
-
-def conflicts(traj: Trajectories, limit: int | None = None) -> list[Conflict]:
-    """Violations of Definition 4, the first step per (robot, other, start/goal).
-
-    ``O(N log N)`` with a k-d tree over all ``N`` trajectory points.
-    """
-    n = traj.n_robots
-    k = np.arange(traj.positions.shape[1])
-    valid = k[None, :] <= traj.lengths[:, None]
-    robot_of = np.broadcast_to(np.arange(n)[:, None], valid.shape)[valid]
-    step_of = np.broadcast_to(k[None, :], valid.shape)[valid]
-    tree = cKDTree(traj.positions[valid])
-    out: list[Conflict] = []
-    for which, points in (("start", traj.starts), ("goal", traj.goals)):
-        for other, hits in enumerate(tree.query_ball_point(points, 2 * traj.radius * (1 - 1e-12))):
-            hits = np.asarray(hits, dtype=np.intp)
-            hits = hits[robot_of[hits] != other]
-            for r in np.unique(robot_of[hits]).tolist():
-                mine = hits[robot_of[hits] == r]
-                out.append(Conflict(int(r), int(step_of[mine].min()), other, which))
-    out.sort(key=lambda c: (c.robot, c.step, c.other))
-    return out[:limit] if limit else out
-
-
-def segment_overlaps(space: CoordinationSpace, limit: int | None = None) -> list[Overlap]:
-    """Pairs of collision segments of one robot with ``f(c) ≥ s(c')`` (Theorem 4's condition fails)."""
-    out: list[Overlap] = []
-    for robot in range(space.n_robots):
-        sides = np.flatnonzero(space.side_waiter == robot)
-        if len(sides) < 2:
-            continue
-        order = sides[np.argsort(space.side_lo[sides], kind="stable")]
-        lo, hi = space.side_lo[order], space.side_hi[order]
-        reach = np.maximum.accumulate(hi)
-        bad = np.flatnonzero(lo[1:] <= reach[:-1] + 1)
-        for b in bad.tolist():
-            prev = int(np.argmax(hi[: b + 1] == reach[b]))
-            out.append(Overlap(robot, (int(lo[prev]), int(hi[prev])), (int(lo[b + 1]), int(hi[b + 1])),
-                               (int(space.side_other[order[prev]]), int(space.side_other[order[b + 1]]))))
-    return out[:limit] if limit else out
-
-
-def check_theory(traj: Trajectories, space: CoordinationSpace) -> TheoryReport:
-    """Definition 4 and Theorem 4's precondition for a plan."""
-    arguments.instance(traj, Trajectories, "traj", "a Trajectories plan")  # input validation
-    arguments.instance(space, CoordinationSpace, "space", "its CoordinationSpace (build_coordination_space)")
-    c = conflicts(traj)
-    o = segment_overlaps(space)
-    return TheoryReport(non_conflicting=not c, disjoint_segments=not o, conflicts=c, overlaps=o)
+__all__ = ["Conflict", "Overlap", "TheoryReport", "check", "check_theory", "conflicts", "segment_overlaps"]
 
 
 def check(spec: Spec, seed: int = 0) -> list[Guarantee]:

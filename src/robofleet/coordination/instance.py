@@ -5,7 +5,7 @@ Instances of ``placement: flows`` are drawn from ``robots.instance_seed``, or fr
 run's seed when that is null; a draw the planner cannot solve (no valid infrastructure)
 is replaced by the next draw of the same seed, at most :data:`INSTANCE_ATTEMPTS` times.
 
-Planning dominates a Fig. 6 run (about 1.3 s of 1.4 s at 20 robots), and the six policy
+Planning costs more than executing one variant of a Fig. 6 instance, and the six policy
 variants of one seed execute the same instance, so planned instances are cached in each
 process (:func:`planned_instance`, least recently used, keyed by the part of the spec the
 plan depends on and the instance seed). Cached arrays are read-only.
@@ -29,6 +29,7 @@ from .coordination_space import CoordinationSpace, build_coordination_space
 from .maps import sample_flow_instance
 from .planner import PlannerSettings, plan_prioritized
 from .spec import Spec
+from .theory import TheoryReport, check_theory
 from .trajectories import Trajectories
 
 INSTANCE_ATTEMPTS = 5
@@ -61,6 +62,11 @@ class Instance:
     attempt: int
     seconds: float
     digest: str
+
+    @functools.cached_property
+    def theory(self) -> TheoryReport:
+        """Definition 4 and Theorem 4's precondition for the plan (computed once per instance)."""
+        return check_theory(self.trajectories, self.space)
 
 
 @dataclass(frozen=True, eq=False)

@@ -26,6 +26,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+import numba
 import numpy as np
 
 from .coordination_space import CoordinationSpace
@@ -149,30 +150,44 @@ def pair_rollout(ctx: FlipContext, first: int) -> tuple[float, float]:
     Deterministic rollout of the two robots alone around the obstacle, with ``first``
     as label: the robot whose next step completes first (expected step time
     ``Δ / (1 − p)``, ``p`` clipped to [0.05, 0.95]) advances; a blocked robot's clock
-    catches up with the other's when it is released. ``O(length of the obstacle)``.
+    catches up with the other's when it is released. ``O(length of the obstacle)``,
+    compiled (:func:`_rollout`).
     """
     s, side = ctx.space, ctx.side
-    w_side = side
-    a_side = side ^ 1
-    robots = (ctx.waiter, ctx.other)
-    x = [int(ctx.progress[ctx.waiter]), int(ctx.progress[ctx.other])]
-    target = [int(s.side_hi[w_side]) + 1, int(s.side_hi[a_side]) + 1]
-    step_time = [_step_times(ctx, r, x0, t) for r, x0, t in zip(robots, x, target)]
-    waiting_side = [w_side if first == ctx.other else None, a_side if first == ctx.waiter else None]
-    start = list(x)
-    clock, finish = [0.0, 0.0], [0.0, 0.0]
-    done = [x[0] >= target[0], x[1] >= target[1]]
+    x_w, x_a = int(ctx.progress[ctx.waiter]), int(ctx.progress[ctx.other])
+    target_w, target_a = int(s.side_hi[side]) + 1, int(s.side_hi[side ^ 1]) + 1
+    wait_w = side if first == ctx.other else -1  # the side that stops the robot without priority
+    wait_a = side ^ 1 if first == ctx.waiter else -1
+    return _rollout(_step_times(ctx, ctx.waiter, x_w, target_w), _step_times(ctx, ctx.other, x_a, target_a), x_w, x_a,
+                    target_w, target_a, wait_w, wait_a, s.side_lo, s.side_hi, s.side_offset, s.profile)
+
+
+@numba.njit(cache=True)
+def _rollout(step_w, step_a, x_w, x_a, target_w, target_a, wait_w, wait_a, side_lo, side_hi, side_offset, profile):
+    """The loop of :func:`pair_rollout` for robots ``0`` (waiter) and ``1`` (other): each
+    iteration advances the movable robot whose next step ends first (robot 0 on a tie)."""
+    steps = (step_w, step_a)
+    start = (x_w, x_a)
+    x = np.array([x_w, x_a])
+    target = (target_w, target_a)
+    wait = (wait_w, wait_a)
+    clock, finish = np.zeros(2), np.zeros(2)
+    done = np.array([x_w >= target_w, x_a >= target_a])
+    blocked = np.zeros(2, dtype=np.bool_)
     while not (done[0] and done[1]):
-        blocked = [_blocked(s, waiting_side[r], x[r], x[1 - r]) for r in (0, 1)]
-        movable = [r for r in (0, 1) if not done[r] and not blocked[r]]
-        if not movable:
-            return float("inf"), float("inf")
-        r = min(movable, key=lambda q: clock[q] + step_time[q][x[q] - start[q]])
-        clock[r] += step_time[r][x[r] - start[r]]
+        for r in range(2):
+            blocked[r] = _blocked(side_lo, side_hi, side_offset, profile, wait[r], x[r], x[1 - r])
+        movable0, movable1 = not done[0] and not blocked[0], not done[1] and not blocked[1]
+        if not movable0 and not movable1:
+            return np.inf, np.inf
+        if movable0 and movable1:
+            r = 1 if clock[1] + steps[1][x[1] - start[1]] < clock[0] + steps[0][x[0] - start[0]] else 0
+        else:
+            r = 0 if movable0 else 1
+        clock[r] += steps[r][x[r] - start[r]]
         x[r] += 1
-        other = 1 - r
-        if blocked[other]:
-            clock[other] = max(clock[other], clock[r])
+        if blocked[1 - r]:
+            clock[1 - r] = max(clock[1 - r], clock[r])
         if x[r] >= target[r]:
             done[r], finish[r] = True, clock[r]
     return finish[0], finish[1]
@@ -185,11 +200,12 @@ def _step_times(ctx: FlipContext, robot: int, start: int, stop: int) -> np.ndarr
     return ctx.times.dt / (1.0 - p)
 
 
-def _blocked(space: CoordinationSpace, side, own: int, other: int) -> bool:
-    """Eq. 1 for one side of one obstacle (``side is None``: this robot has priority)."""
-    if side is None:
+@numba.njit(cache=True)
+def _blocked(side_lo, side_hi, side_offset, profile, side, own, other):
+    """Eq. 1 for one side of one obstacle (``side < 0``: this robot has priority)."""
+    if side < 0:
         return False
     nxt = own + 1
-    if nxt < space.side_lo[side] or nxt > space.side_hi[side]:
+    if nxt < side_lo[side] or nxt > side_hi[side]:
         return False
-    return bool(space.profile[space.side_offset[side] + nxt - space.side_lo[side]] >= other)
+    return profile[side_offset[side] + nxt - side_lo[side]] >= other

@@ -23,6 +23,7 @@ index mod 5     start box (x, y ranges)      goal box
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Iterable
 
 import numpy as np
@@ -49,8 +50,10 @@ def flow_of(robot: np.ndarray | int) -> np.ndarray:
     return table[np.asarray(robot) % 5]
 
 
+@functools.lru_cache(maxsize=1)
 def x_corridor_free_space() -> shapely.Geometry:
-    """The free space of the map as a shapely polygon (with holes)."""
+    """The free space of the map as a shapely polygon (with holes); built once per process
+    (shapely geometries are immutable)."""
     arm_a = Polygon([(0, 0), (400, 0), (2800, 2400), (2400, 2400)])
     arm_b = Polygon([(200, 2400), (600, 2400), (2350, 650), (1950, 650)])
     corridor = box(0, 1600, 3000, 2000)

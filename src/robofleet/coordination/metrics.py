@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .guarantees import TheoryReport
+from .theory import TheoryReport
 from .instance import Instance
 from .plan_execution import ExecutionState, Variant
 

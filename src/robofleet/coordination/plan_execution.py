@@ -19,6 +19,7 @@ recorder.
 
 from __future__ import annotations
 
+import functools
 import time
 from dataclasses import dataclass, field
 from enum import Enum
@@ -29,11 +30,14 @@ import numpy as np
 from ..core.rng import keyed_generator
 from .coordination_space import CoordinationSpace
 from .label_flipping import FlipContext, KnownProbabilities, LearnedProbabilities, flip_eligible, tfa_wants_flip, tff_wants_flip
+from .plain_steps import PlainStepRows, run_plain_steps, space_arrays
 from .rmtrack import ActionRule
 from .segment_graph import IncrementalCycleDetector, Resolution, SegmentLayout, build_segment_layout, has_cycle_full
 from .trajectories import Trajectories
 
 DISTURBANCE_BLOCK = 256
+DISTURBANCE_CACHE_BLOCKS = 128
+"""Disturbance blocks kept per process (2 KB per robot each: 5 MB for 20 robots)."""
 
 
 class Method(str, Enum):
@@ -75,15 +79,25 @@ class DisturbanceStream:
 
     def __init__(self, seed: int, n_robots: int):
         self.seed, self.n = int(seed), n_robots
-        self._blocks: dict[int, np.ndarray] = {}
 
     def uniforms(self, step: int) -> np.ndarray:
-        block = step // DISTURBANCE_BLOCK
-        if block not in self._blocks:
-            self._blocks[block] = np.stack(
-                [keyed_generator(self.seed, "disturbance", robot, block).random(DISTURBANCE_BLOCK) for robot in range(self.n)], axis=1
-            )
-        return self._blocks[block][step % DISTURBANCE_BLOCK]
+        """``u_i(step)`` ``(n,)``."""
+        return self.block(step // DISTURBANCE_BLOCK)[step % DISTURBANCE_BLOCK]
+
+    def block(self, block: int) -> np.ndarray:
+        """The draws of steps ``block · B … (block + 1) · B − 1`` ``(B, n)``, ``B`` = :data:`DISTURBANCE_BLOCK`."""
+        return disturbance_block(self.seed, self.n, block)
+
+
+@functools.lru_cache(maxsize=DISTURBANCE_CACHE_BLOCKS)
+def disturbance_block(seed: int, n_robots: int, block: int) -> np.ndarray:
+    """Draws ``(B, n)`` of one block of steps, robot ``i``'s from the stream ``(seed, "disturbance", i, block)``.
+
+    Cached per process (read-only): the six variants of a seed draw the same blocks.
+    """
+    draws = np.stack([keyed_generator(seed, "disturbance", robot, block).random(DISTURBANCE_BLOCK) for robot in range(n_robots)], axis=1)
+    draws.flags.writeable = False
+    return draws
 
 
 @dataclass
@@ -175,6 +189,11 @@ class PlanExecutor:
         override ``disturbed(step, progress) -> bool (n,)`` of the random disturbances.
     observe_cells:
         ``(n, K_max + 1)`` map cells for a learned estimate.
+    record_cycles:
+        record at every step whether the active segment graph has a cycle (tests).
+    compiled:
+        run the plain steps in compiled code (:mod:`.plain_steps`; the same trace);
+        ``False`` runs every step through the numpy code (tests compare the two).
     """
 
     traj: Trajectories
@@ -189,6 +208,7 @@ class PlanExecutor:
     disturbed: Callable[[int, np.ndarray], np.ndarray] | None = None
     observe_cells: np.ndarray | None = None
     record_cycles: bool = False
+    compiled: bool = True
 
     def run(self, seed: int, max_steps: int) -> Execution:
         """Execute until all robots finish, a deadlock or ``max_steps``.
@@ -198,18 +218,23 @@ class PlanExecutor:
         through the core recorder instead.
         """
         state = self.start(seed)
-        rows_x, rows_wait = [state.x.copy()], []
-        for t in range(max_steps):
-            decision = self.decide(state, t)
-            rows_wait.append(decision.waiting)
-            if decision.stop:
-                break
+        decision, t = (self.decide(state, 0) if max_steps > 0 else self.settle(state)), 0
+        rows_x, rows_wait = [state.x[None].copy()], [decision.waiting[None]]
+        scratch = PlainStepRows.empty(DISTURBANCE_BLOCK, self.traj.n_robots)
+        while not decision.stop and t < max_steps:
+            done, decision = self.plain_steps(state, decision, t, max_steps, scratch)
+            if done > t:
+                rows_x.append(scratch.progress[: done - t].copy())
+                rows_wait.append(scratch.waiting[: done - t].copy())
+                t = done
+                continue
             self.move(state, decision, t)
-            rows_x.append(state.x.copy())
-        else:
-            rows_wait.append(self.settle(state).waiting)
-        self.conclude(state, len(rows_x) - 1)
-        return self.execution(state, np.array(rows_x), np.array(rows_wait[: len(rows_x)]))
+            t += 1
+            decision = self.decide(state, t) if t < max_steps else self.settle(state)
+            rows_x.append(state.x[None].copy())
+            rows_wait.append(decision.waiting[None])
+        self.conclude(state, t)
+        return self.execution(state, np.concatenate(rows_x), np.concatenate(rows_wait))
 
     def start(self, seed: int, events: list[dict] | None = None) -> ExecutionState:
         """The state at ``t = 0``: plan labels, everybody at step 0; ``events`` collects the run's events."""
@@ -233,6 +258,35 @@ class PlanExecutor:
             state.deadlock = True
             state.events.append({"step": t, "kind": "deadlock", "robots": np.flatnonzero(waiting).tolist()})
         return decision
+
+    def plain_steps(self, state: ExecutionState, decision: Decision, k: int, max_steps: int, rows: PlainStepRows) -> tuple[int, Decision]:
+        """Execute the plain steps from ``k`` on in compiled code (:mod:`.plain_steps`), at most
+        to the end of ``k``'s disturbance block, writing their rows into ``rows``.
+
+        Returns the first step not executed (``k`` when step ``k`` is not plain, or when the
+        compiled path is off) and the decision of that step.
+        """
+        if not self.compiles:
+            return k, decision
+        block = k // DISTURBANCE_BLOCK
+        moving, waiting = decision.moving.copy(), decision.waiting.copy()
+        done = run_plain_steps(
+            k, (block + 1) * DISTURBANCE_BLOCK, max_steps, state.stream.block(block), block * DISTURBANCE_BLOCK, state.x, moving,
+            waiting, state.labels, state.tried, self.variant.method is not Method.RMTRACK, self.probability, self.traj.positions,
+            self.traj.lengths, (2 * self.traj.radius) ** 2, self.side_arrays, rows.disturbed, rows.progress, rows.waiting,
+        )
+        if done == k:
+            return k, decision
+        return done, Decision(waiting, moving, state.x >= self.space.lengths)
+
+    @property
+    def compiles(self) -> bool:
+        """Whether :meth:`plain_steps` runs (not with overridden disturbances, a learned estimate or cycle recording)."""
+        return self.compiled and self.disturbed is None and self.observe_cells is None and not self.record_cycles
+
+    @functools.cached_property
+    def side_arrays(self) -> tuple[np.ndarray, ...]:
+        return space_arrays(self.space)
 
     def settle(self, state: ExecutionState) -> Decision:
         """Eq. 1 at the end of the step budget, without flip tests (the state the run ends in)."""

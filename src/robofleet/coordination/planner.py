@@ -24,9 +24,11 @@ tests it; RPP is guaranteed to succeed on such instances.
 
 from __future__ import annotations
 
+import functools
 import heapq
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 import shapely
 from scipy.sparse import coo_matrix
@@ -60,9 +62,14 @@ class Roadmap:
     nodes: np.ndarray
     edges: np.ndarray
 
-    @property
+    @functools.cached_property
     def lengths(self) -> np.ndarray:
         return np.linalg.norm(self.nodes[self.edges[:, 1]] - self.nodes[self.edges[:, 0]], axis=1)
+
+    def distances_to_edges(self, points: np.ndarray) -> np.ndarray:
+        """``(P, E)``: distance from each point to each edge's segment."""
+        a, b = self.nodes[self.edges[:, 0]], self.nodes[self.edges[:, 1]]
+        return point_segment_distance(np.asarray(points, dtype=float).reshape(-1, 2), a, b)
 
 
 def build_roadmap(workspace: Workspace, settings: PlannerSettings, extra_points: np.ndarray) -> Roadmap:
@@ -83,8 +90,12 @@ def build_roadmap(workspace: Workspace, settings: PlannerSettings, extra_points:
 
 
 def check_valid_infrastructure(roadmap: Roadmap, starts: np.ndarray, goals: np.ndarray, radius: float,
-                               start_nodes: np.ndarray, goal_nodes: np.ndarray) -> None:
+                               start_nodes: np.ndarray, goal_nodes: np.ndarray, endpoint_distances: np.ndarray | None = None) -> None:
     """Raise unless every robot reaches its goal avoiding the ``2r`` discs of all other endpoints.
+
+    ``endpoint_distances``: ``roadmap.distances_to_edges`` of the starts followed by the
+    goals ``(2n, E)``, computed here when not given (one distance per endpoint and edge,
+    shared by all robots' tests).
 
     Raises
     ------
@@ -92,9 +103,11 @@ def check_valid_infrastructure(roadmap: Roadmap, starts: np.ndarray, goals: np.n
         Naming the first robot without such a path.
     """
     n = len(starts)
+    if endpoint_distances is None:
+        endpoint_distances = roadmap.distances_to_edges(np.concatenate([starts, goals]))
     for i in range(n):
-        others = np.concatenate([np.delete(starts, i, axis=0), np.delete(goals, i, axis=0)])
-        ok_edges = _edges_clear_of(roadmap, others, 2 * radius)
+        others = np.delete(endpoint_distances, [i, n + i], axis=0)
+        ok_edges = _clear_of(others, len(roadmap.edges), 2 * radius)
         if not np.isfinite(_distances(roadmap, ok_edges, int(goal_nodes[i]))[start_nodes[i]]):
             raise InfeasibleError(
                 f"robots[{i}]: expected a valid infrastructure (a path from start {starts[i].round(1).tolist()} to goal "
@@ -102,12 +115,11 @@ def check_valid_infrastructure(roadmap: Roadmap, starts: np.ndarray, goals: np.n
             )
 
 
-def _edges_clear_of(roadmap: Roadmap, points: np.ndarray, reach: float) -> np.ndarray:
-    """Edges whose segment keeps distance ``≥ reach`` from every point."""
-    if len(points) == 0:
-        return np.ones(len(roadmap.edges), dtype=bool)
-    a, b = roadmap.nodes[roadmap.edges[:, 0]], roadmap.nodes[roadmap.edges[:, 1]]
-    return point_segment_distance(points, a, b).min(axis=0) >= reach
+def _clear_of(distances: np.ndarray, n_edges: int, reach: float) -> np.ndarray:
+    """Edges ``(E,)`` whose segment keeps distance ``≥ reach`` from every point (``distances`` ``(P, E)``)."""
+    if len(distances) == 0:
+        return np.ones(n_edges, dtype=bool)
+    return distances.min(axis=0) >= reach
 
 
 def _distances(roadmap: Roadmap, edge_ok: np.ndarray, target: int, weights: np.ndarray | None = None) -> np.ndarray:
@@ -140,11 +152,13 @@ def plan_prioritized(workspace: Workspace, starts: np.ndarray, goals: np.ndarray
         if not np.any(roadmap.edges[:, 0] == node):
             which, k = ("starts", i) if i < n else ("goals", i - n)
             raise InfeasibleError(f"robots.{which}[{k}]: expected a point connected to the roadmap, received an isolated one")
+    endpoint_distances = roadmap.distances_to_edges(np.concatenate([starts, goals]))
     if check_infrastructure:
-        check_valid_infrastructure(roadmap, starts, goals, settings.radius, start_nodes, goal_nodes)
+        check_valid_infrastructure(roadmap, starts, goals, settings.radius, start_nodes, goal_nodes, endpoint_distances)
     paths: list[np.ndarray] = []
     for i in range(n):
-        search = SpaceTimeSearch(roadmap, settings, start_nodes[i], goal_nodes[i], np.asarray(paths_to_array(paths)), starts[i + 1:])
+        edge_ok = _clear_of(endpoint_distances[i + 1:n], len(roadmap.edges), 2 * settings.radius)
+        search = SpaceTimeSearch(roadmap, settings, start_nodes[i], goal_nodes[i], np.asarray(paths_to_array(paths)), edge_ok)
         path = search.run()
         if path is None:
             raise InfeasibleError(f"robots[{i}]: expected a trajectory to goal {goals[i].round(1).tolist()}, received none within {settings.max_steps} steps")
@@ -180,15 +194,16 @@ class SpaceTimeSearch:
 
     States are ``(node, t)`` with ``t`` in simulation steps; an edge of length ``ℓ`` takes
     ``ceil(ℓ / (v Δ))`` steps, a wait ``wait_steps``. A move is collision-checked at every
-    intermediate step against the higher-priority positions (vectorized).
+    intermediate step against the higher-priority positions (compiled, :func:`space_time_astar`).
+    ``higher`` ``(T, m, 2)``: the higher-priority plans padded with their goals; ``edge_ok``
+    ``(E,)``: the roadmap edges clear of the lower-priority robots' start discs.
     """
 
-    def __init__(self, roadmap: Roadmap, settings: PlannerSettings, start: int, goal: int, higher: np.ndarray, lower_starts: np.ndarray):
+    def __init__(self, roadmap: Roadmap, settings: PlannerSettings, start: int, goal: int, higher: np.ndarray, edge_ok: np.ndarray):
         self.roadmap, self.s = roadmap, settings
         self.start, self.goal = int(start), int(goal)
         self.higher = higher  # (T, m, 2)
         self.reach2 = (2 * settings.radius) ** 2
-        edge_ok = _edges_clear_of(roadmap, lower_starts, 2 * settings.radius)
         step_len = settings.speed * settings.dt
         self.duration = np.maximum(1, np.ceil(roadmap.lengths / step_len - 1e-9)).astype(int)
         self.h = _distances(roadmap, edge_ok, self.goal, self.duration.astype(float))
@@ -196,9 +211,9 @@ class SpaceTimeSearch:
             raise InfeasibleError(f"roadmap node {self.start}: expected a path to the goal avoiding lower-priority starts, received none")
         order = np.argsort(roadmap.edges[:, 0], kind="stable")
         ok = order[edge_ok[order]]
-        self.adj_ptr = np.searchsorted(roadmap.edges[ok, 0], np.arange(len(roadmap.nodes) + 1))
-        self.adj_to = roadmap.edges[ok, 1]
-        self.adj_dur = self.duration[ok]
+        self.adj_ptr = np.searchsorted(roadmap.edges[ok, 0], np.arange(len(roadmap.nodes) + 1)).astype(np.int64)
+        self.adj_to = roadmap.edges[ok, 1].astype(np.int64)
+        self.adj_dur = self.duration[ok].astype(np.int64)
         self.goal_free_from = self._goal_free_from()
 
     def _goal_free_from(self) -> int:
@@ -212,53 +227,97 @@ class SpaceTimeSearch:
         hits = np.flatnonzero(close)
         return int(hits[-1]) + 1 if len(hits) else 0
 
-    def _clear(self, a: np.ndarray, b: np.ndarray, t0: int, d: int) -> bool:
-        """Does the straight move ``a → b`` over steps ``t0 … t0 + d`` avoid all moving discs?"""
-        if self.higher.shape[1] == 0:
-            return True
-        frac = np.arange(1, d + 1)[:, None] / d
-        pts = a + (b - a) * frac
-        t = np.minimum(np.arange(t0 + 1, t0 + d + 1), len(self.higher) - 1)
-        return bool(np.all(((self.higher[t] - pts[:, None]) ** 2).sum(-1) >= self.reach2))
-
     def run(self) -> np.ndarray | None:
         """The trajectory ``(K + 1, 2)``, or ``None`` if none is found within the limits."""
-        nodes = self.roadmap.nodes
-        if not self._clear(nodes[self.start], nodes[self.start], -1, 1):
+        chain = space_time_astar(
+            self.roadmap.nodes, self.adj_ptr, self.adj_to, self.adj_dur, self.h, np.ascontiguousarray(self.higher, dtype=float),
+            self.reach2, self.start, self.goal, self.goal_free_from, self.s.wait_steps, self.s.max_steps, self.s.max_expansions,
+        )
+        if len(chain) == 0:
             return None
-        open_heap = [(float(self.h[self.start]), 0, self.start)]
-        parent: dict[tuple[int, int], tuple[int, int] | None] = {(self.start, 0): None}
-        closed: set[tuple[int, int]] = set()
-        expansions = 0
-        while open_heap and expansions < self.s.max_expansions:
-            _, t, u = heapq.heappop(open_heap)
-            if (u, t) in closed:
-                continue
-            closed.add((u, t))
-            expansions += 1
-            if u == self.goal and t >= self.goal_free_from:
-                return self._trajectory(parent, (u, t))
-            moves = [(u, self.s.wait_steps)] + list(zip(self.adj_to[self.adj_ptr[u]:self.adj_ptr[u + 1]].tolist(),
-                                                         self.adj_dur[self.adj_ptr[u]:self.adj_ptr[u + 1]].tolist()))
-            for v, d in moves:
-                key = (v, t + d)
-                if key in closed or key in parent or t + d > self.s.max_steps:
-                    continue
-                if not self._clear(nodes[u], nodes[v], t, d):
-                    continue
-                parent[key] = (u, t)
-                heapq.heappush(open_heap, (t + d + float(self.h[v]), t + d, v))
-        return None
+        return self._trajectory(chain)
 
-    def _trajectory(self, parent, state) -> np.ndarray:
-        chain = []
-        while state is not None:
-            chain.append(state)
-            state = parent[state]
-        chain.reverse()
+    def _trajectory(self, chain: np.ndarray) -> np.ndarray:
+        """Sample the chain of states ``(node, t)`` ``(S, 2)`` at every step (straight moves at constant speed)."""
+        chain = chain.tolist()
         nodes = self.roadmap.nodes
         out = [nodes[chain[0][0]][None]]
         for (u, t0), (v, t1) in zip(chain[:-1], chain[1:]):
             frac = np.arange(1, t1 - t0 + 1)[:, None] / (t1 - t0)
             out.append(nodes[u] + (nodes[v] - nodes[u]) * frac)
         return np.concatenate(out)
+
+
+@numba.njit(cache=True)
+def _move_clear(higher, reach2, ax, ay, bx, by, t0, d):
+    """Does the straight move ``a → b`` over steps ``t0 + 1 … t0 + d`` keep ``≥ 2r`` from every
+    higher-priority robot (position at step ``k`` clamped to the last planned step)?
+
+    Point ``k`` of the move is ``a + (b − a)·(k / d)``, the sample the trajectory records. ``O(d m)``.
+    """
+    last = higher.shape[0] - 1
+    for k in range(1, d + 1):
+        frac = k / d
+        px, py = ax + (bx - ax) * frac, ay + (by - ay) * frac
+        row = min(t0 + k, last)
+        for j in range(higher.shape[1]):
+            dx, dy = higher[row, j, 0] - px, higher[row, j, 1] - py
+            if dx * dx + dy * dy < reach2:
+                return False
+    return True
+
+
+@numba.njit(cache=True)
+def _state_chain(parent, key, n_nodes):
+    """States ``(node, t)`` ``(S, 2)`` from the start to ``key`` by following ``parent``."""
+    keys = [key]
+    while parent[key] >= 0:
+        key = parent[key]
+        keys.append(key)
+    chain = np.empty((len(keys), 2), dtype=np.int64)
+    for i in range(len(keys)):
+        chain[len(keys) - 1 - i, 0] = keys[i] % n_nodes
+        chain[len(keys) - 1 - i, 1] = keys[i] // n_nodes
+    return chain
+
+
+@numba.njit(cache=True)
+def space_time_astar(nodes, adj_ptr, adj_to, adj_dur, h, higher, reach2, start, goal, goal_free_from, wait_steps,
+                     max_steps, max_expansions):
+    """Space-time A* of one robot (RPP, Čáp et al. 2015), compiled.
+
+    States ``(node, t)`` are keyed ``t · N + node``; the open list is a binary heap of
+    ``(t + h(node), t, node)`` (ties: earlier step, then lower node index); a state is
+    generated once (its first parent is kept) and expanded once. Successors of ``(u, t)``:
+    a wait of ``wait_steps`` at ``u``, then ``u``'s roadmap edges in their stored order,
+    each kept if it ends by ``max_steps`` and :func:`_move_clear` accepts it. The search
+    ends at the goal from step ``goal_free_from`` on, or after ``max_expansions``
+    expansions. Returns the chain of states ``(S, 2)`` (node, step), empty when none is found.
+    """
+    n_nodes = nodes.shape[0]
+    empty = np.empty((0, 2), dtype=np.int64)
+    if higher.shape[1] > 0 and not _move_clear(higher, reach2, nodes[start, 0], nodes[start, 1], nodes[start, 0], nodes[start, 1], -1, 1):
+        return empty
+    heap = [(h[start], np.int64(0), np.int64(start))]
+    parent = {np.int64(start): np.int64(-1)}
+    closed = {np.int64(-1): True}
+    expansions = 0
+    while len(heap) > 0 and expansions < max_expansions:
+        _, t, u = heapq.heappop(heap)
+        key = t * n_nodes + u
+        if key in closed:
+            continue
+        closed[key] = True
+        expansions += 1
+        if u == goal and t >= goal_free_from:
+            return _state_chain(parent, key, n_nodes)
+        for e in range(adj_ptr[u] - 1, adj_ptr[u + 1]):
+            v, d = (u, wait_steps) if e < adj_ptr[u] else (adj_to[e], adj_dur[e])
+            nxt = (t + d) * n_nodes + v
+            if nxt in closed or nxt in parent or t + d > max_steps:
+                continue
+            if higher.shape[1] > 0 and not _move_clear(higher, reach2, nodes[u, 0], nodes[u, 1], nodes[v, 0], nodes[v, 1], t, d):
+                continue
+            parent[nxt] = key
+            heapq.heappush(heap, (t + d + h[v], t + d, v))
+    return empty

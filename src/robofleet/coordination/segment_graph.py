@@ -43,10 +43,12 @@ Cycle tests
 
 from __future__ import annotations
 
+from collections import Counter
 from dataclasses import dataclass
 from enum import Enum
 import heapq
 
+import numba
 import numpy as np
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
@@ -198,14 +200,15 @@ class IncrementalCycleDetector:
         self.succ: list[dict[int, int]] = [dict() for _ in range(v)]
         self.pred: list[dict[int, int]] = [dict() for _ in range(v)]
         src, dst = layout.active_edges(self.labels)
-        for u, w in zip(src.tolist(), dst.tolist()):
-            self._insert(u, w)
+        for (u, w), count in Counter(zip(src.tolist(), dst.tolist())).items():  # first-insertion order, as edge by edge
+            self.succ[u][w] = count
+            self.pred[w][u] = count
         self._node_robot = layout.node_robot.tolist()
         self._node_start = layout.node_start.tolist()
         self.visited_last = 0
         # topological index of every vertex (a list: fast scalar access); None while the
         # literal Definition 3 graph of the plan is cyclic (see the module docstring)
-        self.order = self._topological_order()
+        self.order = self._topological_order(src, dst)
         if self.order is None and layout.resolution is Resolution.EXACT:
             stuck = find_cycle_nodes(layout, self.labels, self._nothing_entered())[:6].tolist()
             raise InfeasibleError(f"trajectories: expected plan labels without a cycle, received a cycle among segments {stuck}")
@@ -214,34 +217,21 @@ class IncrementalCycleDetector:
         """Progress ``-1`` for every robot: the whole graph is the active subgraph."""
         return np.full(len(self.layout.robot_first_node) - 1, -1, dtype=np.intp)
 
-    def _topological_order(self, progress: np.ndarray | None = None) -> list[int] | None:
-        """A topological order close to plan time, of the active subgraph for ``progress``
-        (the whole graph without), or ``None`` when it has a cycle.
-
-        Kahn's algorithm that always takes the ready vertex whose segment starts earliest:
-        new flip edges then mostly point between nearby moments, which keeps the
-        Pearce–Kelly search region small. Entered vertices come first, in any order (no
-        search enters them).
-        """
+    def _topological_order(self, src: np.ndarray, dst: np.ndarray, progress: np.ndarray | None = None) -> list[int] | None:
+        """A topological order close to plan time of the graph with edges ``src → dst``
+        (its active subgraph for ``progress``), or ``None`` when it has a cycle
+        (:func:`earliest_first_order`)."""
         v = self.layout.n_nodes
-        start = self.layout.node_start
         entered = np.zeros(v, dtype=bool) if progress is None else self.layout.done(np.asarray(progress))
-        indegree = np.array([sum(c for u, c in p.items() if not entered[u]) for p in self.pred], dtype=np.intp)
-        order = np.full(v, -1, dtype=np.intp)
-        done = np.flatnonzero(entered)
-        order[done] = np.arange(len(done))
-        position = len(done)
-        ready = [(int(start[x]), x) for x in np.flatnonzero(~entered & (indegree == 0)).tolist()]
-        heapq.heapify(ready)
-        while ready:
-            _, x = heapq.heappop(ready)
-            order[x] = position
-            position += 1
-            for y, count in self.succ[x].items():
-                indegree[y] -= count
-                if indegree[y] == 0 and not entered[y]:
-                    heapq.heappush(ready, (int(start[y]), y))
-        return order.tolist() if position == v else None
+        order = earliest_first_order(np.ascontiguousarray(src, dtype=np.intp), np.ascontiguousarray(dst, dtype=np.intp),
+                                     np.ascontiguousarray(self.layout.node_start, dtype=np.intp), entered)
+        return order.tolist() if v == 0 or order[0] >= 0 else None
+
+    def _edges(self) -> tuple[np.ndarray, np.ndarray]:
+        """The graph's edges ``(src, dst)`` now, one entry per parallel edge."""
+        pairs = [(u, w) for u, table in enumerate(self.succ) for w, count in table.items() for _ in range(count)]
+        edges = np.array(pairs, dtype=np.intp).reshape(-1, 2)
+        return edges[:, 0], edges[:, 1]
 
     def _insert(self, u: int, w: int) -> None:
         self.succ[u][w] = self.succ[u].get(w, 0) + 1
@@ -349,7 +339,7 @@ class IncrementalCycleDetector:
         for u, w in zip(*(e.tolist() for e in self.layout.side_edges(new_side))):
             self._insert(u, w)
         self.labels[obstacle] = new_label
-        self.order = self._topological_order(None if progress is None else now)
+        self.order = self._topological_order(*self._edges(), None if progress is None else now)
         return True
 
     def _sides(self, obstacle: int, new_label: int) -> tuple[int, int]:
@@ -358,3 +348,49 @@ class IncrementalCycleDetector:
         old_side = first if self.layout.side_other[first] == self.labels[obstacle] else first + 1
         new_side = first if self.layout.side_other[first] == new_label else first + 1
         return old_side, new_side
+
+
+@numba.njit(cache=True)
+def earliest_first_order(src, dst, start, entered):
+    """Kahn's algorithm that always takes the ready vertex whose segment starts earliest
+    (ties: lower index), over the vertices not ``entered``; entered vertices come first, in
+    index order (no search enters them). Parallel edges count once each.
+
+    Taking the earliest segment keeps the order close to plan time, so new flip edges
+    mostly point between nearby moments and the Pearce–Kelly search region stays small.
+    Returns the index of every vertex in the order ``(V,)``, or ``[-1, …]`` when the
+    vertices not entered hold a cycle. ``O((V + E) log V)``.
+    """
+    v = len(start)
+    indegree = np.zeros(v, dtype=np.intp)
+    first = np.zeros(v + 1, dtype=np.intp)
+    for e in range(len(src)):
+        first[src[e] + 1] += 1
+        if not entered[src[e]]:
+            indegree[dst[e]] += 1
+    first = np.cumsum(first)
+    succ = np.empty(len(src), dtype=np.intp)
+    fill = first[:-1].copy()
+    for e in range(len(src)):
+        succ[fill[src[e]]] = dst[e]
+        fill[src[e]] += 1
+    order = np.full(v, -1, dtype=np.intp)
+    position = 0
+    for x in range(v):
+        if entered[x]:
+            order[x] = position
+            position += 1
+    ready = [(start[x], x) for x in range(v) if not entered[x] and indegree[x] == 0]
+    heapq.heapify(ready)
+    while len(ready) > 0:
+        _, x = heapq.heappop(ready)
+        order[x] = position
+        position += 1
+        for e in range(first[x], first[x + 1]):
+            y = succ[e]
+            indegree[y] -= 1
+            if indegree[y] == 0 and not entered[y]:
+                heapq.heappush(ready, (start[y], y))
+    if position < v:
+        order[:] = -1
+    return order

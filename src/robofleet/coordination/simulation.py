@@ -22,6 +22,8 @@ the disturbances (one stream per robot and block of steps) and, when
 
 from __future__ import annotations
 
+import time
+
 import numpy as np
 
 from ..core.family import expect_spec
@@ -29,12 +31,12 @@ from ..core.recorder import Recorder
 from ..core.rng import resolve_seed
 from ..core.trace import Trace
 from ..core.workspace import Workspace
-from .guarantees import check_theory
 from .instance import Instance, prepare_instance
 from .label_flipping import KnownProbabilities, LearnedProbabilities
 from .maps import probability_map
 from .metrics import run_results
-from .plan_execution import Decision, Estimate, ExecutionState, PlanExecutor, Variant
+from .plain_steps import PlainStepRows
+from .plan_execution import DISTURBANCE_BLOCK, Decision, Estimate, ExecutionState, PlanExecutor, Variant
 from .spec import Spec
 
 FAMILY_NAME = "coordination"
@@ -99,6 +101,10 @@ def map_cells(points: np.ndarray, workspace: Workspace, cell: float) -> np.ndarr
 class RecordedExecution:
     """The recorder's step function: one move and the next step's decisions per call.
 
+    Runs of plain steps (:mod:`.plain_steps`) are executed by one compiled call, which
+    writes their rows into the recorder's arrays at once; the recorder's later calls for
+    those steps return at once. Their ``step_seconds`` share the call's wall time equally.
+
     Parameters
     ----------
     rec:
@@ -119,6 +125,8 @@ class RecordedExecution:
         rec.step("disturbed", (n, 1), dtype=bool, fill=False)
         rec.arrive(0, state.x >= traj.lengths)
         self.decision = self.decide(0)
+        self.executed = 0
+        self.scratch = PlainStepRows.empty(DISTURBANCE_BLOCK, n)
 
     def decide(self, t: int) -> Decision:
         """Decisions of step ``t`` (flip tests, Eq. 1), recorded in row ``t`` of ``waiting``."""
@@ -129,9 +137,13 @@ class RecordedExecution:
     def step(self, k: int) -> bool:
         """Move from ``t = k`` to ``k + 1``, decide at ``k + 1``; ``True`` when the run ends."""
         rec, state, traj = self.rec, self.state, self.executor.traj
+        if k < self.executed:  # done by the compiled block of an earlier call
+            return False
         if self.decision.stop:  # finished or deadlocked at t = 0: nothing moves
             rec.put_state(k + 1, positions=traj.at(state.x), progress=state.x[:, None], waiting=self.decision.waiting[:, None])
             return True
+        if self.run_plain_steps(k):
+            return False
         with rec.timed(k):
             hit = self.executor.move(state, self.decision, k)
             rec.put(k, disturbed=hit[:, None])
@@ -140,12 +152,42 @@ class RecordedExecution:
             self.decision = self.decide(k + 1)
         return self.decision.stop
 
+    def run_plain_steps(self, k: int) -> bool:
+        """Execute the plain steps from ``k`` on in one compiled call and record them;
+        ``False`` (nothing done) when step ``k`` is not plain."""
+        t0 = time.perf_counter()
+        done, decision = self.executor.plain_steps(self.state, self.decision, k, self.rec.max_steps, self.scratch)
+        if done == k:
+            return False
+        rows, traj = done - k, self.executor.traj
+        progress, waiting = self.scratch.progress[:rows], self.scratch.waiting[:rows]
+        positions = traj.positions[np.arange(traj.n_robots)[None, :], np.minimum(progress, traj.lengths)]
+        put_rows(self.rec, k + 1, positions=positions, progress=progress[:, :, None], waiting=waiting[:, :, None])
+        put_rows(self.rec, k, disturbed=self.scratch.disturbed[:rows, :, None])
+        self.decision, self.executed = decision, done
+        self.rec["step_seconds"][k:done] = (time.perf_counter() - t0) / rows
+        return True
+
+
+def put_rows(rec: Recorder, first: int, **values: np.ndarray) -> None:
+    """Write one row of each value per step: the states after steps ``first, first + 1, …``
+    (or the per-step rows of those steps), kept as :meth:`Recorder.put_state` and
+    :meth:`Recorder.put` keep them (every ``record_every``-th)."""
+    every = getattr(rec, "record_every", 1)
+    for name, value in values.items():
+        if every == 1:
+            rec[name][first:first + len(value)] = value
+            continue
+        rows = np.arange(first, first + len(value))
+        kept = rows % every == 0
+        rec[name][rows[kept] // every] = value[kept]
+
 
 def execution_trace(spec: Spec, rec: Recorder, state: ExecutionState, instance: Instance, workspace: Workspace,
                     variant: Variant, seed: int) -> Trace:
     """The run as a :class:`Trace`: the recorder's arrays plus the plan, metadata, results."""
     traj = instance.trajectories
-    report = check_theory(traj, instance.space)
+    report = instance.theory
     metadata = {
         "method": variant.name, "dt": traj.dt, "radius": traj.radius, "goals": traj.goals.tolist(),
         "goal_tolerance": 0.0, "base_probability": spec.disturbance.base_probability,

@@ -89,6 +89,12 @@ def format_bytes(nbytes: float) -> str:
     return f"{int(nbytes)} B"
 
 
+def recorded_rows(steps: int, record_every: int = 1) -> int:
+    """State rows a run of ``steps`` steps keeps when it records every ``record_every``-th
+    step: the states after steps 0, k, 2k, … ≤ ``steps`` (the initial state included)."""
+    return steps // record_every + 1
+
+
 @dataclass(frozen=True)
 class RunSize:
     """What a run of a scenario holds for its whole length, as the scenario decides it.
@@ -102,6 +108,8 @@ class RunSize:
     extra_bytes: other memory the run holds throughout (a plan, a grid, logs), if known.
     extra_what: what ``extra_bytes`` is, for the message.
     extra_field: the scenario field that sets ``extra_bytes`` (named when it dominates).
+    record_every: only the states and per-step rows of every ``record_every``-th step are
+        kept (:func:`recorded_rows`); the per-step compute times are kept for every step.
     """
 
     steps: int
@@ -112,12 +120,12 @@ class RunSize:
     extra_bytes: int = 0
     extra_what: str = ""
     extra_field: str = ""
+    record_every: int = 1
 
     @property
     def recorded_bytes(self) -> int:
-        """The recorded arrays and the per-step compute times."""
-        rows = self.steps + 1
-        return rows * self.robots * self.bytes_per_robot_step + rows * FLOAT_BYTES
+        """The recorded arrays (recorded steps only) and the per-step compute times (every step)."""
+        return recorded_rows(self.steps, self.record_every) * self.robots * self.bytes_per_robot_step + (self.steps + 1) * FLOAT_BYTES
 
     @property
     def nbytes(self) -> int:
@@ -133,7 +141,8 @@ class RunSize:
 
     def describe(self) -> Described:
         """``8 robots × 500 steps ≈ 2.3 MiB, roadmap and plan ≈ 17 MiB``."""
-        text = f"{self.robots} robots × {self.steps} steps ≈ {format_bytes(self.recorded_bytes)}"
+        every = f" (1 in {self.record_every} recorded)" if self.record_every > 1 else ""
+        text = f"{self.robots} robots × {self.steps} steps{every} ≈ {format_bytes(self.recorded_bytes)}"
         if self.extra_bytes and self.extra_what:
             text += f", {self.extra_what} ≈ {format_bytes(self.extra_bytes)}"
         return Described(text)

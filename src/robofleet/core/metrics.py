@@ -101,6 +101,23 @@ def motion_summary(
     obs_hits, min_obs = obstacle_contacts(positions, radius, workspace) if workspace else (np.empty((0, 2)), np.full(len(positions), np.inf))
     if arrivals is None:
         arrivals = arrival_steps(positions, goals, goal_tolerance)
+    return contact_summary(contacts, min_pair, obs_hits, min_obs, arrivals, dt, step_seconds, len(positions) - 1)
+
+
+def contact_summary(
+    contacts: np.ndarray,
+    min_pair: np.ndarray,
+    obs_hits: np.ndarray,
+    min_obs: np.ndarray,
+    arrivals: np.ndarray,
+    dt: float,
+    step_seconds: np.ndarray | None,
+    n_steps: int,
+) -> dict:
+    """:func:`motion_summary` from the contacts of every state (``pair_contacts`` rows
+    ``(step, i, j)``, ``obstacle_contacts`` rows ``(step, robot)``, per-state minimum
+    distances) and the arrival steps: the form a run that tallies contacts step by step
+    (without keeping every state) uses."""
     arrived = arrivals >= 0
     n_pairs = len({(int(i), int(j)) for _, i, j in contacts})
     n_obs = len({int(r) for _, r in obs_hits})
@@ -116,6 +133,6 @@ def motion_summary(
         "makespan": float(arrivals.max() * dt) if arrived.all() else float("nan"),
         "mean_travel_time": float(arrivals[arrived].mean() * dt) if arrived.any() else float("nan"),
         "median_step_seconds": float(np.median(steps)),
-        "n_steps": int(len(positions) - 1),
-        "n_robots": int(positions.shape[1]),
+        "n_steps": int(n_steps),
+        "n_robots": int(len(arrivals)),
     }

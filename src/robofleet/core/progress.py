@@ -29,6 +29,9 @@ def tracked(total: int | None, description: str, enabled: bool = True) -> Iterat
     A loop that ends early on its own (a run whose robots all arrived) shows a full bar of
     the steps it took; one left by an exception keeps its partial bar.
     """
+    if not enabled:  # no bar to move: a call per loop step costs nothing
+        yield lambda n=1: None
+        return
     with progress_bar(total, description, enabled) as bar:
         task = bar.add_task(description, total=total)
         yield lambda n=1: bar.advance(task, n)

@@ -12,6 +12,11 @@ A ``workspace:`` block reads the same in every family::
       regions:
         - {name: crossing, vertices: [[...]], ...}
 
+A scenario that derives from :class:`RecordingSpec` takes ``record_every: k`` (default 1):
+its run keeps the states and per-step arrays of steps 0, k, 2k, … only, while the run
+itself, and every per-run result, still see every step (see
+:class:`~robofleet.core.recorder.Recorder`).
+
 Families subclass :class:`WorkspaceSpec` to add what only they need (the uncertainty of
 obstacle positions in avoidance, a preset map in coordination, a region's disturbance
 probability) and to tighten it (convex shapes for B-UAVC cells, non-overlapping
@@ -74,6 +79,20 @@ def rounded_rectangle(rectangle: Sequence[float], radius: float, step_degrees: f
     arcs = [np.column_stack([cx + radius * np.cos(np.deg2rad(a0) + angles), cy + radius * np.sin(np.deg2rad(a0) + angles)])
             for cx, cy, a0 in centres]
     return np.concatenate(arcs)
+
+
+class RecordingSpec(SpecModel):
+    """What a run records: ``record_every`` k keeps the states and per-step arrays of
+    steps 0, k, 2k, … (the trajectory and every per-run result are those of every step)."""
+
+    record_every: int = Field(1, ge=1)
+
+    @field_validator("record_every", mode="before")
+    @classmethod
+    def _not_a_flag(cls, value):  # input validation: pydantic would read true as 1
+        if isinstance(value, bool):
+            raise ScenarioError("", "a positive integer (record every k-th step)", value)
+        return value
 
 
 class ObstacleSpec(SpecModel):

@@ -1,7 +1,9 @@
 """``Trace``: what a run recorded, saved as ``trace.npz`` + ``trace.json``.
 
 Arrays are per-step, shaped ``(n_steps, n_robots, dim)`` (positions include the initial
-state, so ``n_steps = steps + 1``). Events are small dicts (``{"step": 12, "kind":
+state, so ``n_steps = steps + 1``); a run with ``record_every`` k > 1
+(:attr:`Trace.record_every`) keeps the rows of steps 0, k, 2k, … only, its row ``j``
+being step ``j·k`` (``metadata["n_steps"]`` still counts every step). Events are small dicts (``{"step": 12, "kind":
 "deadlock", "robot": 3}``). ``metadata`` holds what is needed to interpret the arrays
 (family, dt, radius, goals, workspace...), ``results`` the scalar outcomes the simulation
 decided (e.g. ``deadlock: true``), written by the family's ``metrics.py`` so that
@@ -51,13 +53,18 @@ class Trace:
 
     @property
     def positions(self) -> np.ndarray:
-        """True positions ``(n_steps + 1, n_robots, dim)``."""
+        """True positions ``(n_steps + 1, n_robots, dim)`` (the kept states with ``record_every``)."""
         return self.arrays["positions"]
 
     @property
     def seed(self) -> int:
         """The seed the run used: ``simulate(spec, seed=trace.seed)`` replays it exactly."""
         return int(self.metadata["seed"])
+
+    @property
+    def record_every(self) -> int:
+        """Steps between two kept rows (1: every step; state row ``j`` is the state after ``j · record_every`` steps)."""
+        return int(self.metadata.get("record_every", 1))
 
     @property
     def scenario(self) -> str:

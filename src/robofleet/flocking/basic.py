@@ -33,17 +33,22 @@ Line numbers below refer to the listing of Algorithm 1 in the paper.
   documented completions of the listing.
 
 The Compute step (:meth:`BasicAlgorithm.decide`) sees only the local snapshot and the
-pattern. Per call the cost is O(m log m) for m followers (sorting), all vectorized.
+pattern. Per call the cost is O(m log m) for m followers (sorting), all vectorized; the
+slot order (lines 7-12) depends on the pattern only and is computed once
+(:meth:`BasicAlgorithm.slot_order`). :mod:`.compiled` runs the same steps in O(m) per
+call (ranks counted, not sorted) for ASYNC runs.
 """
 
 from __future__ import annotations
 
+import functools
+import math
 from dataclasses import dataclass, field
 from typing import Any, ClassVar, Literal
 
 import numpy as np
 
-from .model import Decision, FrameAgreement, Snapshot, wait_decision
+from .model import Decision, FrameAgreement, Snapshot, apply_matrix, wait_decision
 from .patterns import Pattern
 
 
@@ -128,8 +133,8 @@ class BasicAlgorithm:
     # ---- lines 1-2 ------------------------------------------------------------------
     def y_axis(self, snapshot: Snapshot) -> np.ndarray | None:
         """Unit vector of Y = B → L (line 2), ``None`` for the L = B tie (footnote 3)."""
-        to_leader = snapshot.leader - snapshot.followers.mean(axis=0)
-        norm = np.linalg.norm(to_leader)
+        to_leader = snapshot.leader - barycenter(snapshot.followers)
+        norm = vector_norm(to_leader)
         return None if norm <= self.axis_tolerance else to_leader / norm
 
     def pattern_axis(self, pattern: Pattern) -> np.ndarray:
@@ -149,23 +154,26 @@ class BasicAlgorithm:
     def view(self, snapshot: Snapshot, pattern: Pattern, pattern_points: np.ndarray, axis: np.ndarray) -> View:
         """Lines 1-14: B, Y, S_j, F, B_F, F_j and the sorted orders."""
         followers, leader = snapshot.followers, snapshot.leader
-        bary = followers.mean(axis=0)
-        normal = np.array([-axis[1], axis[0]])
-        lateral = (followers - leader) @ normal
+        bary = barycenter(followers)
+        lateral = signed_distances(followers - leader, axis)
         side = side_labels(lateral, self.axis_tolerance)
         keys = self.robot_keys(followers, leader, bary, lateral)
         order = sort_descending(keys)
         robot_order = tuple(order[side[order] == j] for j in range(3))
 
         pax = self.pattern_axis(pattern)
-        rot = _rotation(pax, axis)
-        slot_points = pattern_points @ rot.T + leader                                   # line 6
-        p_lateral = pax[0] * pattern_points[:, 1] - pax[1] * pattern_points[:, 0]
-        p_side = side_labels(p_lateral, pattern.scale_tolerance)                      # lines 8-10
-        p_keys = self.slot_keys(pattern_points, pattern_points.mean(axis=0), p_lateral)
-        p_order = sort_descending(p_keys)                                               # line 12
-        slot_order = tuple(p_order[p_side[p_order] == j] for j in range(3))
-        return View(followers, leader, bary, axis, lateral, side, robot_order, slot_points, slot_order, keys)
+        slot_points = apply_matrix(_rotation(pax, axis), pattern_points) + leader          # line 6
+        return View(followers, leader, bary, axis, lateral, side, robot_order, slot_points,
+                    self.slot_order(pattern, pattern_points), keys)
+
+    def slot_order(self, pattern: Pattern, pattern_points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Lines 7-12: F_0, F_1, F_2 as pattern indices sorted by :meth:`slot_keys`.
+
+        They depend on the pattern points (in pattern coordinates) only, not on the Look,
+        so they are computed once per pattern (and mirror image) and reused.
+        """
+        pax = self.pattern_axis(pattern)
+        return _slot_order(self, pattern_points.tobytes(), len(pattern_points), pax.tobytes(), pattern.scale_tolerance)
 
     def robot_keys(self, followers: np.ndarray, leader: np.ndarray, bary: np.ndarray, lateral: np.ndarray) -> tuple[np.ndarray, ...]:
         """Sort keys of line 13, primary first: dist(L, ·), dist(B, ·), then local x, y."""
@@ -266,6 +274,39 @@ class BasicAlgorithm:
     def plan_path(self, view: View, target: np.ndarray) -> np.ndarray:
         """``Move(p)``: a straight move towards ``p``."""
         return target[None, :].copy()
+
+
+@functools.lru_cache(maxsize=64)
+def _slot_order(algorithm: BasicAlgorithm, points: bytes, n: int, pattern_axis: bytes,
+                tolerance: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:meth:`BasicAlgorithm.slot_order` for the points and axis given as bytes (cache key)."""
+    pattern_points = np.frombuffer(points, dtype=float).reshape(n, 2)
+    pax = np.frombuffer(pattern_axis, dtype=float)
+    p_lateral = pax[0] * pattern_points[:, 1] - pax[1] * pattern_points[:, 0]
+    p_side = side_labels(p_lateral, tolerance)                                             # lines 8-10
+    p_order = sort_descending(algorithm.slot_keys(pattern_points, barycenter(pattern_points), p_lateral))  # line 12
+    slots = tuple(p_order[p_side[p_order] == j] for j in range(3))
+    for ranked in slots:
+        ranked.setflags(write=False)
+    return slots
+
+
+def barycenter(points: np.ndarray) -> np.ndarray:
+    """Mean of ``(n, 2)`` points (line 1, line 7): the correctly rounded sum of each
+    coordinate (:func:`math.fsum`) over n. The same whatever the order of the points, so
+    it does not depend on how a snapshot lists them."""
+    return np.array([math.fsum(points[:, 0].tolist()), math.fsum(points[:, 1].tolist())]) / len(points)
+
+
+def vector_norm(v: np.ndarray) -> float:
+    """Euclidean length of one 2-D vector, as ``sqrt(x x + y y)``."""
+    return float(np.sqrt(v[0] * v[0] + v[1] * v[1]))
+
+
+def signed_distances(offsets: np.ndarray, axis: np.ndarray) -> np.ndarray:
+    """Signed distance of each offset ``(n, 2)`` from a line of unit direction ``axis``
+    through its origin, > 0 on the left: ``offset · (−a_y, a_x)``, written out per term."""
+    return offsets[..., 0] * -axis[1] + offsets[..., 1] * axis[0]
 
 
 def _rotation(src: np.ndarray, dst: np.ndarray) -> np.ndarray:

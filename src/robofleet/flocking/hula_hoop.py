@@ -20,13 +20,13 @@ monotone, so it stays in the annulus, and when the target is outside, the move s
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import ClassVar
 
 import numpy as np
 
-from ..core.geometry import point_segment_distance
-from .basic import BasicAlgorithm, View
+from .basic import BasicAlgorithm, View, vector_norm
 from .stripe import stable_band
 
 HOOP_PATH_POINTS = 32
@@ -45,9 +45,9 @@ class HulaHoopAlgorithm(BasicAlgorithm):
         """Straight, curved, or stopped at the annulus boundary (module docstring)."""
         radius = np.linalg.norm(view.followers - view.leader, axis=1)
         lo, hi = stable_band(radius, view.order[view.my_side], self.margin)
-        r1 = float(np.linalg.norm(target - view.leader))
+        r1 = vector_norm(target - view.leader)
         if lo <= r1 <= hi:
-            closest = float(point_segment_distance(view.leader[None], np.zeros((1, 2)), target[None])[0, 0])
+            closest = distance_to_segment(view.leader, target)
             if closest >= lo:
                 return target[None, :].copy()
             return spiral(view.leader, np.zeros(2), target, 1.0)
@@ -57,18 +57,31 @@ class HulaHoopAlgorithm(BasicAlgorithm):
         return spiral(view.leader, np.zeros(2), target, float(np.clip(stop, 0.0, 1.0)))
 
 
+def distance_to_segment(p: np.ndarray, end: np.ndarray) -> float:
+    """Distance from point ``p`` to the segment from the origin (the robot) to ``end``."""
+    length2 = end[0] * end[0] + end[1] * end[1]
+    u = (p[0] * end[0] + p[1] * end[1]) / (length2 if length2 > 0 else 1.0)
+    u = min(max(u, 0.0), 1.0)
+    return vector_norm(p - u * end)
+
+
 def spiral(center: np.ndarray, start: np.ndarray, target: np.ndarray, stop: float, points: int = HOOP_PATH_POINTS) -> np.ndarray:
     """Points ``(points, 2)`` of the polar spiral around ``center`` from ``start`` towards ``target``.
 
-    Parameter s runs over ``(0, stop]``; radius and angle are linear in s.
+    Parameter s runs over ``(0, stop]`` in ``points`` equal steps; radius and angle are
+    linear in s. Evaluated point by point with the ``math`` functions, as the compiled
+    engine (:mod:`.compiled`) does.
     """
     a, b = start - center, target - center
-    r0, r1 = np.linalg.norm(a), np.linalg.norm(b)
-    th0 = np.arctan2(a[1], a[0])
-    dth = (np.arctan2(b[1], b[0]) - th0 + np.pi) % (2 * np.pi) - np.pi
-    s = np.linspace(0.0, stop, points + 1)[1:]
-    r, th = r0 + s * (r1 - r0), th0 + s * dth
-    out = center + np.column_stack([r * np.cos(th), r * np.sin(th)])
+    r0, r1 = vector_norm(a), vector_norm(b)
+    th0 = math.atan2(a[1], a[0])
+    dth = (math.atan2(b[1], b[0]) - th0 + math.pi) % (2 * math.pi) - math.pi
+    step = stop / points
+    out = np.empty((points, 2))
+    for k in range(1, points + 1):
+        s = k * step if k < points else stop
+        r, th = r0 + s * (r1 - r0), th0 + s * dth
+        out[k - 1] = center[0] + r * math.cos(th), center[1] + r * math.sin(th)
     if stop >= 1.0:
         out[-1] = target
     return out

@@ -29,7 +29,7 @@ from typing import ClassVar
 
 import numpy as np
 
-from .basic import BasicAlgorithm
+from .basic import BasicAlgorithm, vector_norm
 from .model import FrameAgreement, Snapshot
 from .patterns import Pattern
 
@@ -48,7 +48,7 @@ class ObservableHeadingAlgorithm(BasicAlgorithm):
     def y_axis(self, snapshot: Snapshot) -> np.ndarray | None:
         """Y = the leader's heading (unit vector in the local frame)."""
         h = snapshot.leader_heading
-        return h / np.linalg.norm(h)
+        return h / vector_norm(h)
 
     def pattern_axis(self, pattern: Pattern) -> np.ndarray:
         """The pattern's x axis is the leader's direction (Sec. 4.2)."""
@@ -69,7 +69,7 @@ class MemoryAlgorithm(BasicAlgorithm):
         """Leader displacement since the stored position; B → L when unavailable."""
         if snapshot.memory is not None:
             step = self._leader_persistent(snapshot) - np.asarray(snapshot.memory)
-            norm = np.linalg.norm(step)
+            norm = vector_norm(step)
             if norm > MIN_LEADER_STEP:
                 return step / norm
         return super().y_axis(snapshot)
@@ -93,7 +93,9 @@ class ChiralityAlgorithm(BasicAlgorithm):
                    lateral: np.ndarray) -> tuple[np.ndarray, ...]:
         """dist(L, ·), dist(B, ·), then the shared coordinates: side of Y (left first), along Y."""
         to_leader = leader - bary
-        along = (followers - bary) @ (to_leader / np.linalg.norm(to_leader))
+        unit = to_leader / vector_norm(to_leader)
+        offsets = followers - bary
+        along = offsets[:, 0] * unit[0] + offsets[:, 1] * unit[1]
         d_l = np.linalg.norm(followers - leader, axis=1)
         d_b = np.linalg.norm(followers - bary, axis=1)
         return (d_l, d_b, lateral, along)

@@ -71,16 +71,29 @@ class LocalFrames:
         return np.stack([np.stack([c, s], -1), np.stack([-h * s, h * c], -1)], -2)
 
     def to_local(self, i: int, points: np.ndarray, origin: np.ndarray) -> np.ndarray:
-        """World points ``(..., 2)`` in the frame of robot ``i`` placed at ``origin``."""
-        return (np.asarray(points, dtype=float) - origin) @ self.matrices[i].T
+        """World points ``(..., 2)`` in the frame of robot ``i`` placed at ``origin``: M_i (p − o)."""
+        return apply_matrix(self.matrices[i], np.asarray(points, dtype=float) - origin)
 
     def vectors_to_local(self, i: int, vectors: np.ndarray) -> np.ndarray:
         """World direction vectors in the axes of robot ``i`` (no translation)."""
-        return np.asarray(vectors, dtype=float) @ self.matrices[i].T
+        return apply_matrix(self.matrices[i], np.asarray(vectors, dtype=float))
 
     def to_world(self, i: int, local: np.ndarray, origin: np.ndarray) -> np.ndarray:
-        """Inverse of :meth:`to_local`."""
-        return np.asarray(local, dtype=float) @ self.matrices[i] + origin
+        """Inverse of :meth:`to_local`: M_iᵀ q + o."""
+        return apply_matrix(self.matrices[i].T, np.asarray(local, dtype=float)) + origin
+
+
+def apply_matrix(matrix: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """``matrix @ p`` for every point ``p`` of ``points`` ``(..., 2)``, as ``a x + b y`` per row.
+
+    Written out (one IEEE product per term, then one sum) rather than as ``points @ matrix.T``:
+    a BLAS product fuses some of these multiply-adds and not others depending on the array
+    length and the CPU, so the same positions would round differently in a Look of 3 robots
+    and of 1,000, and on two machines. The compiled ASYNC engine
+    (:mod:`robofleet.flocking.compiled`) evaluates the same expression term by term.
+    """
+    x, y = points[..., 0], points[..., 1]
+    return np.stack([x * matrix[0, 0] + y * matrix[0, 1], x * matrix[1, 0] + y * matrix[1, 1]], axis=-1)
 
 
 @dataclass(frozen=True)

@@ -26,7 +26,7 @@ from typing import ClassVar
 
 import numpy as np
 
-from .basic import BasicAlgorithm, View, side_labels, sort_descending
+from .basic import BasicAlgorithm, View, barycenter, side_labels, signed_distances, sort_descending
 from .model import Decision, Snapshot
 from .patterns import Pattern
 
@@ -98,8 +98,8 @@ class RandomizedAlgorithm(BasicAlgorithm):
         if pattern.is_lb_symmetric:
             return pattern.points
         followers, leader = snapshot.followers, snapshot.leader
-        bary = followers.mean(axis=0)
-        lateral = (followers - leader) @ np.array([-axis[1], axis[0]])
+        bary = barycenter(followers)
+        lateral = signed_distances(followers - leader, axis)
         side = side_labels(lateral, self.axis_tolerance)
         tol = self.tie_tolerance * max(1.0, float(np.abs(followers - leader).max()))
         space = ranking(followers[side == 1], followers[side == 2], leader, bary, tol)         # step 2

@@ -22,6 +22,10 @@ v_f τ allows).
 The algorithm only ever receives :class:`~robofleet.flocking.model.Snapshot` s built by
 :func:`~robofleet.flocking.model.look` and returns local paths, turned back into world
 coordinates here. Per Look the engine costs O(m) vectorized work plus the algorithm.
+ASYNC runs of the basic, stripe, hula-hoop and randomized algorithms go through the
+compiled loop of :mod:`.compiled` instead (O(m) per Look and Compute, the same trace bit
+for bit; :func:`compiled_setup` says when), with the heap of next-Look times kept as
+arrays and the scheduler's stream drawn in the same order.
 
 :class:`LookComputeMove` is the engine, advanced one sampling interval at a time by the
 family's loop (:func:`robofleet.flocking.simulation.simulate`, through the core
@@ -42,9 +46,14 @@ from ..core.errors import ConfigError, ScenarioError
 from ..core.budget import check_allocation
 from ..core.recorder import Recorder
 from ..core.config import SpecModel
+from .basic import BasicAlgorithm
+from .compiled import BASIC, HULA_HOOP, RANDOMIZED, STRIPE, heapify, next_events, point_at, run_events
+from .hula_hoop import HulaHoopAlgorithm
 from .leader import LeaderCourse
 from .model import Algorithm, LocalFrames, look
 from .patterns import Pattern
+from .randomized import RandomizedAlgorithm
+from .stripe import StripeAlgorithm
 
 
 class SchedulerSpec(SpecModel):
@@ -94,6 +103,44 @@ class CycleLog:
 
 INT_COLUMNS = ("robot", "slot", "seen_moving")
 POINT_COLUMNS = ("start", "destination", "end")
+FLOAT_COLUMNS = ("t_look", "t_end", "start", "destination", "end", "travel", "path_length")  # points take two columns
+
+
+class _CycleStore:
+    """The cycle log as growing column blocks: ``ints`` (robot, slot, seen_moving) and
+    ``floats`` (t_look, t_end, start x y, destination x y, end x y, travel, path_length);
+    rows ``0 .. count − 1`` are filled, by either engine."""
+
+    def __init__(self, capacity: int = 1024):
+        self.ints = np.zeros((capacity, len(INT_COLUMNS)), dtype=np.int64)
+        self.floats = np.zeros((capacity, 10))
+        self.count = 0
+
+    def reserve(self, rows: int) -> None:
+        """Room for ``rows`` more rows (capacity doubles)."""
+        need = self.count + rows
+        if need > len(self.ints):
+            size = max(need, 2 * len(self.ints))
+            self.ints = np.concatenate([self.ints, np.zeros((size - len(self.ints), self.ints.shape[1]), dtype=np.int64)])
+            self.floats = np.concatenate([self.floats, np.zeros((size - len(self.floats), self.floats.shape[1]))])
+
+    def append(self, robot: int, slot: int, seen_moving: int, t_look: float, t_end: float, start, destination, end,
+               travel: float, path_length: float) -> None:
+        self.reserve(1)
+        self.ints[self.count] = (robot, slot, seen_moving)
+        self.floats[self.count] = (t_look, t_end, *start, *destination, *end, travel, path_length)
+        self.count += 1
+
+    def columns(self) -> dict[str, np.ndarray]:
+        """Every column of :class:`CycleLog`, rows in time order (copies)."""
+        ints, floats = self.ints[:self.count], self.floats[:self.count]
+        out = {name: ints[:, c].copy() for c, name in enumerate(INT_COLUMNS)}
+        c = 0
+        for name in FLOAT_COLUMNS:
+            width = 2 if name in POINT_COLUMNS else 1
+            out[name] = floats[:, c:c + width].copy() if width == 2 else floats[:, c].copy()
+            c += width
+        return out
 
 
 @dataclass
@@ -108,7 +155,8 @@ class RunResult:
 
 
 class _Motion:
-    """Current Move of every follower: padded world paths, start time, speed, length ℓ."""
+    """Current Move of every follower: padded world paths, start time, speed, length ℓ,
+    and where the Move ends (``rest``, for the compiled engine)."""
 
     def __init__(self, starts: np.ndarray, speeds: np.ndarray, points: int):
         m = len(starts)
@@ -118,6 +166,7 @@ class _Motion:
         self.travel = np.zeros(m)
         self.speed = speeds
         self.rows = np.arange(m)
+        self.rest = np.array([point_at(self.path, self.cum, i, 0.0) for i in range(m)]).reshape(m, 2)
 
     def positions(self, t: float) -> np.ndarray:
         """Every follower's position at time ``t`` (vectorized over followers)."""
@@ -148,27 +197,36 @@ class _Motion:
         self.cum[i] = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(pad, axis=0), axis=1))])
         self.t0[i] = t
         self.travel[i] = travel
+        self.rest[i] = point_at(self.path, self.cum, i, travel)
+
+
+def _rigidity_draws(spec: SchedulerSpec, n: int, rng: np.random.Generator) -> list[float]:
+    """η ~ U(``rigidity``, 1) for each of ``n`` Moves (A2); 1 for rigid moves (no draw)."""
+    return [rng.uniform(spec.rigidity, 1.0) if spec.rigidity < 1.0 else 1.0 for _ in range(n)]
 
 
 def _look_batches(spec: SchedulerSpec, m: int, duration: float, rng: np.random.Generator):
-    """Yield ``(t, robots)``: who looks when. ASYNC uses a heap of next-Look times."""
+    """Yield ``(t, robots, taus, etas)``: who looks when, their cycle lengths and the η of
+    their Moves. ASYNC uses a heap of next-Look times. The scheduler's stream is drawn in
+    the order activations / τ, then η of each robot of the batch."""
     if spec.kind in ("fsync", "ssync"):
         for t in range(int(np.floor(duration)) + 1):
             if spec.kind == "fsync":
-                yield float(t), np.arange(m), np.ones(m)
+                yield float(t), np.arange(m), np.ones(m), _rigidity_draws(spec, m, rng)
                 continue
             active = np.zeros(m, dtype=bool)
             while not active.any():
                 active = rng.random(m) < spec.activation_probability
-            yield float(t), np.flatnonzero(active), np.ones(active.sum())
+            yield float(t), np.flatnonzero(active), np.ones(active.sum()), _rigidity_draws(spec, int(active.sum()), rng)
         return
     heap = [(float(t), i) for i, t in enumerate(rng.uniform(0.0, spec.cycle_min, size=m))]
     heapq.heapify(heap)
+    rigid = spec.rigidity >= 1.0
     while heap and heap[0][0] <= duration:
         t, i = heapq.heappop(heap)
         tau = float(rng.uniform(spec.cycle_min, spec.cycle_max))
         heapq.heappush(heap, (t + tau, i))
-        yield t, np.array([i]), np.array([tau])
+        yield t, (i,), (tau,), (1.0 if rigid else rng.uniform(spec.rigidity, 1.0),)
 
 
 def _check_inputs(pattern: Pattern, frames: LocalFrames, starts, speeds) -> tuple[np.ndarray, np.ndarray]:
@@ -199,6 +257,52 @@ def sample_times(duration: float, sample_dt: float) -> np.ndarray:
     return times
 
 
+def path_length(world: np.ndarray) -> float:
+    """Length of a world path ``(K + 1, 2)``: its segment lengths summed in order (the
+    value the Move's cumulative lengths end with)."""
+    gaps = np.diff(world, axis=0)
+    return float(np.cumsum(np.sqrt(gaps[:, 0] * gaps[:, 0] + gaps[:, 1] * gaps[:, 1]))[-1])
+
+
+@dataclass(frozen=True)
+class CompiledSetup:
+    """What :func:`robofleet.flocking.compiled.run_events` needs besides the state: the
+    algorithm kind and parameters, the local-frame matrices, the pattern points, the
+    pattern axis and the slot order F_0, F_1, F_2 (rows padded with −1)."""
+
+    kind: int
+    matrices: np.ndarray
+    pattern_points: np.ndarray
+    pattern_axis: np.ndarray
+    slots: np.ndarray
+    n_slots: np.ndarray
+    axis_tolerance: float
+    margin: float
+    tie_tolerance: float
+
+
+COMPILED_KINDS = {BasicAlgorithm: BASIC, StripeAlgorithm: STRIPE, HulaHoopAlgorithm: HULA_HOOP, RandomizedAlgorithm: RANDOMIZED}
+
+
+def compiled_setup(algorithm: Algorithm, pattern: Pattern, spec: SchedulerSpec, frames: LocalFrames) -> CompiledSetup | None:
+    """The compiled loop's inputs when it covers this run, else ``None``: ASYNC, one of the
+    basic (paper ranking), stripe, hula-hoop or randomized algorithms (exactly these
+    classes, not subclasses), and for the randomized one an lb-symmetric pattern."""
+    kind = COMPILED_KINDS.get(type(algorithm))
+    if spec.kind != "async" or kind is None or algorithm.ranking != "paper":
+        return None
+    if kind == RANDOMIZED and not pattern.is_lb_symmetric:
+        return None
+    order = algorithm.slot_order(pattern, pattern.points)
+    slots = np.full((3, pattern.size), -1, dtype=np.int64)
+    for j, ranked in enumerate(order):
+        slots[j, :len(ranked)] = ranked
+    return CompiledSetup(kind, np.ascontiguousarray(frames.matrices), np.ascontiguousarray(pattern.points, dtype=float),
+                         np.ascontiguousarray(algorithm.pattern_axis(pattern), dtype=float), slots,
+                         np.array([len(r) for r in order], dtype=np.int64), float(algorithm.axis_tolerance),
+                         float(getattr(algorithm, "margin", 0.0)), float(getattr(algorithm, "tie_tolerance", 0.0)))
+
+
 class LookComputeMove:
     """The Look-Compute-Move engine of Sec. 2: who looks when, each Compute, each Move.
 
@@ -222,11 +326,15 @@ class LookComputeMove:
     scheduler_rng, algorithm_rng:
         Independent seeded streams (activations, cycle and move lengths / the algorithm's
         own random choices).
+    compiled:
+        Run ASYNC cycles of the algorithms :func:`compiled_setup` covers in the compiled
+        loop of :mod:`.compiled` (bit-identical to the interpreted steps, which run
+        otherwise, and for the events the compiled loop hands back).
     """
 
     def __init__(self, algorithm: Algorithm, pattern: Pattern, frames: LocalFrames, starts, speeds, course: LeaderCourse,
                  spec: SchedulerSpec, *, duration: float, scheduler_rng: np.random.Generator,
-                 algorithm_rng: np.random.Generator):
+                 algorithm_rng: np.random.Generator, compiled: bool = True):
         starts, speeds = _check_inputs(pattern, frames, starts, speeds)
         if spec.min_move > spec.rigidity * speeds.min() * spec.move_time_min:
             raise ScenarioError("scheduler.min_move", f"δ_f <= rigidity · min speed · shortest Move = {spec.rigidity * speeds.min() * spec.move_time_min:.4g}", spec.min_move)
@@ -235,10 +343,17 @@ class LookComputeMove:
         self.scheduler_rng, self.algorithm_rng = scheduler_rng, algorithm_rng
         self.motion = _Motion(starts, speeds, getattr(algorithm, "path_points", 1))
         self.memory: list = [None] * len(starts)
-        self.rows: dict[str, list] = {k: [] for k in CycleLog.__dataclass_fields__}
+        self.store = _CycleStore()
         self.looks = 0
-        self._batches = _look_batches(spec, len(starts), duration, scheduler_rng)
-        self._pending = next(self._batches, None)
+        self.duration = duration
+        self._compiled = compiled_setup(algorithm, pattern, spec, frames) if compiled else None
+        if self._compiled is None:
+            self._batches = _look_batches(spec, len(starts), duration, scheduler_rng)
+            self._pending = next(self._batches, None)
+        else:  # the heap of next-Look times of _look_batches, kept as arrays
+            self._heap_t = scheduler_rng.uniform(0.0, spec.cycle_min, size=len(starts))
+            self._heap_i = np.arange(len(starts), dtype=np.int64)
+            heapify(self._heap_t, self._heap_i)
 
     @property
     def size(self) -> int:
@@ -252,16 +367,61 @@ class LookComputeMove:
     def advance(self, until: float) -> int:
         """Run every Look-Compute-Move cycle that starts before ``until``; return how many ran."""
         before = self.looks
+        if self._compiled is not None:
+            while self._run_compiled(*self._async_events(until)):
+                pass
+            return self.looks - before
         while self._pending is not None and self._pending[0] < until:
             self._run_batch(*self._pending)
             self._pending = next(self._batches, None)
         return self.looks - before
 
+    def _async_events(self, until: float, most: int = 4096) -> tuple[np.ndarray, ...]:
+        """The next ASYNC events before ``until`` (at most ``most``): Look times, robots, τ, η.
+
+        The draws are those :func:`_look_batches` makes, in the same order (τ, then η, per
+        event): a block of uniform doubles is drawn, the heap uses what it needs, and the
+        stream is then left exactly that many draws further on. A follower looks at most
+        once per ``cycle_min`` (A1), which bounds the block.
+        """
+        spec, rng = self.spec, self.scheduler_rng
+        span = min(until, self.duration) - self._heap_t.min()
+        limit = int(min(most, self.size * (max(span, 0.0) // spec.cycle_min + 1)))
+        state = rng.bit_generator.state
+        draws = rng.random(limit * (1 if spec.rigidity >= 1.0 else 2))
+        out = np.empty(limit), np.empty(limit, dtype=np.int64), np.empty(limit), np.empty(limit)
+        n, used = next_events(self._heap_t, self._heap_i, draws, spec.cycle_min, spec.cycle_max, spec.rigidity,
+                              self.duration, until, *out)
+        rng.bit_generator.state = state
+        rng.random(used)
+        return tuple(column[:n] for column in out)
+
+    def _run_compiled(self, times: np.ndarray, robots: np.ndarray, taus: np.ndarray, etas: np.ndarray) -> int:
+        """Run these events in the compiled loop (the ones it hands back run interpreted);
+        returns how many there were."""
+        leaders = self.course.position(times)
+        setup, motion, store = self._compiled, self.motion, self.store
+        store.reserve(len(times))
+        done = 0
+        while done < len(times):
+            ran = run_events(setup.kind, times[done:], robots[done:], taus[done:], etas[done:], leaders[done:],
+                             motion.path, motion.cum, motion.t0, motion.travel, motion.speed, motion.rest, setup.matrices,
+                             setup.pattern_points, setup.pattern_axis, setup.slots, setup.n_slots,
+                             setup.axis_tolerance, setup.margin, setup.tie_tolerance, self.spec.min_move,
+                             store.ints, store.floats, store.count)
+            store.count += ran
+            self.looks += ran
+            done += ran
+            if done < len(times):
+                self._run_batch(float(times[done]), (int(robots[done]),), (float(taus[done]),), (float(etas[done]),))
+                done += 1
+        return len(times)
+
     def finish(self) -> int:
         """Run the cycles left before the end of the horizon; return how many ran."""
         return self.advance(np.inf)
 
-    def _run_batch(self, t: float, robots: np.ndarray, taus: np.ndarray) -> None:
+    def _run_batch(self, t: float, robots, taus, etas) -> None:
         """The followers ``robots`` Look at time ``t`` (the same instant), Compute, and start
         their Moves of cycle lengths ``taus`` (A2: ℓ = min(|path|, max(δ_f, η v_f τ)))."""
         spec, motion, frames, speeds = self.spec, self.motion, self.frames, self.speeds
@@ -277,38 +437,32 @@ class LookComputeMove:
             self.memory[i] = decision.memory
             world = np.concatenate([followers[i][None], frames.to_world(i, decision.path, followers[i])])
             plans.append((i, tau, world, decision.slot))
-        rows = self.rows
-        for i, tau, world, slot in plans:
-            length = float(np.linalg.norm(np.diff(world, axis=0), axis=1).sum())
-            eta = self.scheduler_rng.uniform(spec.rigidity, 1.0) if spec.rigidity < 1.0 else 1.0
+        for (i, tau, world, slot), eta in zip(plans, etas):
+            length = path_length(world)
             travel = min(length, max(spec.min_move, eta * speeds[i] * tau))
             motion.set(i, world, t, travel)
-            rows["robot"].append(i); rows["t_look"].append(t); rows["t_end"].append(t + tau)
-            rows["start"].append(followers[i]); rows["destination"].append(world[-1])
-            rows["end"].append(motion.position_of(i, t + tau)); rows["travel"].append(travel)
-            rows["path_length"].append(length); rows["slot"].append(slot)
-            rows["seen_moving"].append(int(np.count_nonzero(np.delete(moving, i))))
+            self.store.append(i, slot, int(np.count_nonzero(np.delete(moving, i))), t, t + tau, followers[i], world[-1],
+                              motion.position_of(i, t + tau), travel, length)
         self.looks += len(robots)
 
     def cycle_fields(self, c: int) -> dict:
         """Cycle ``c`` as event fields (``robot`` = follower index 1..m, leader being 0)."""
-        rows = self.rows
+        (robot, slot, seen), f = self.store.ints[c], self.store.floats[c]
         return {
-            "robot": int(rows["robot"][c]) + 1, "t_look": float(rows["t_look"][c]), "t_end": float(rows["t_end"][c]),
-            "start": rows["start"][c].tolist(), "destination": rows["destination"][c].tolist(), "end": rows["end"][c].tolist(),
-            "travel": float(rows["travel"][c]), "path_length": float(rows["path_length"][c]), "slot": int(rows["slot"][c]),
-            "seen_moving": int(rows["seen_moving"][c]),
+            "robot": int(robot) + 1, "t_look": float(f[0]), "t_end": float(f[1]),
+            "start": f[2:4].tolist(), "destination": f[4:6].tolist(), "end": f[6:8].tolist(),
+            "travel": float(f[8]), "path_length": float(f[9]), "slot": int(slot), "seen_moving": int(seen),
         }
 
     def log(self) -> CycleLog:
         """The cycles run so far as a :class:`CycleLog`."""
-        return CycleLog(**{k: np.asarray(v, dtype=float).reshape(-1, 2) if k in POINT_COLUMNS
-                           else np.asarray(v, dtype=int if k in INT_COLUMNS else float) for k, v in self.rows.items()})
+        return CycleLog(**self.store.columns())
 
 
 def run(algorithm: Algorithm, pattern: Pattern, frames: LocalFrames, starts: np.ndarray, speeds: np.ndarray,
         course: LeaderCourse, spec: SchedulerSpec, *, duration: float, sample_dt: float = 1.0,
-        scheduler_rng: np.random.Generator, algorithm_rng: np.random.Generator, progress: bool = False) -> RunResult:
+        scheduler_rng: np.random.Generator, algorithm_rng: np.random.Generator, progress: bool = False,
+        compiled: bool = True) -> RunResult:
     """Simulate followers running ``algorithm`` under scheduler ``spec`` behind ``course``.
 
     The same engine and sampling as a scenario run, without a scenario: for hand-built
@@ -325,11 +479,13 @@ def run(algorithm: Algorithm, pattern: Pattern, frames: LocalFrames, starts: np.
     scheduler_rng, algorithm_rng:
         independent seeded streams (activation and move lengths / the algorithm's own
         random choices).
+    compiled:
+        as for :class:`LookComputeMove` (the same trace either way).
     """
     if not isinstance(course, LeaderCourse) or not isinstance(spec, SchedulerSpec):  # input validation
         raise ConfigError(f"course, spec: expected a LeaderCourse and a SchedulerSpec, received {type(course).__name__}, {type(spec).__name__}")
     engine = LookComputeMove(algorithm, pattern, frames, starts, speeds, course, spec, duration=duration,
-                             scheduler_rng=scheduler_rng, algorithm_rng=algorithm_rng)
+                             scheduler_rng=scheduler_rng, algorithm_rng=algorithm_rng, compiled=compiled)
     times = sample_times(duration, sample_dt)
     leader = course.position(times)
     rec = Recorder(len(times) - 1, 1 + engine.size, label="flocking", progress=progress)

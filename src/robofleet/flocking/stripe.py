@@ -23,7 +23,7 @@ from typing import ClassVar
 
 import numpy as np
 
-from .basic import BasicAlgorithm, View
+from .basic import BasicAlgorithm, View, signed_distances
 
 
 @dataclass(frozen=True)
@@ -48,8 +48,7 @@ class StripeAlgorithm(BasicAlgorithm):
         if view.my_side == 0:
             return target[None, :].copy()
         lo, hi = stable_band(np.abs(view.lateral), view.order[view.my_side], self.margin)
-        normal = np.array([-view.y_axis[1], view.y_axis[0]])
-        lat_target = float((target - view.leader) @ normal)
+        lat_target = float(signed_distances(target - view.leader, view.y_axis))
         s = first_exit(float(view.lateral[0]), lat_target, lo, hi)
         return (s * target)[None, :]
 

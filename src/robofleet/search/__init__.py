@@ -11,7 +11,7 @@ of independent runs), :mod:`.metrics` (per-run results, ``success``), :mod:`.gua
 
 Algorithm parts (one module each): :mod:`.grids` (T/S/H grids, accessibility),
 :mod:`.sensing` (r_so, r_st, r_c), :mod:`.knowledge` (per-robot maps and message
-exchange), :mod:`.decentralized` (step-4 order, rules (1) and (2), broadcast),
+exchange), :mod:`.neighbours` (robots within r_c / r_so by spatial hashing, collisions), :mod:`.decentralized` (step-4 order, rules (1) and (2), broadcast),
 :mod:`.policy` (per-robot random streams, step context), :mod:`.timing` (rotation +
 trapezoidal translation), :mod:`.random_baseline` (RU), :mod:`.levy_flight` (LFP),
 :mod:`.assumptions` (Assumptions 2.4, 2.5, 3.1.1–3.1.3), :mod:`.coverage` (detected share). The Fig. 7 reproduction is declared in

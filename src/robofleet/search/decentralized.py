@@ -7,9 +7,10 @@ Paper 002, Section 4.1 step 4 and Section 4.2 (step 5):
   :func:`robofleet.search.grids.choice_priority`. Each robot waits only for its
   higher-priority communication neighbours, so robots that do not wait on each other
   choose in the same *round*: round(i) = 1 + max round of the neighbours it waits for.
-  Robots of one round are never neighbours, so their choices are independent and are
-  computed together (vectorized); the result equals any sequential execution that keeps
-  the order inside every neighbourhood.
+  Robots of one round are never neighbours, so their choices are independent; one
+  compiled pass takes the robots round by round (:func:`.step_kernels.sequential_choices`),
+  and the result equals any sequential execution that keeps the order inside every
+  neighbourhood.
 * **Options** ``N_s,i(k)``: lattice neighbours of the robot's vertex whose edge it senses
   free, minus the vertices it knows blocked, minus the current vertices of the robots it
   communicates with or senses, minus the choices already broadcast by earlier
@@ -26,15 +27,17 @@ Paper 002, Section 4.1 step 4 and Section 4.2 (step 5):
 
 Every quantity a robot uses is its own row: its map (:class:`~.knowledge.RobotMaps`), its
 sensing at its vertex, the positions and choices its neighbours sent, and its own random
-stream. Complexity per step: O(rounds · m · k · n) for m robots per round and n robots per run.
+stream. Complexity per step: O(N log N + N · k · c) for N robots with at most
+c neighbours each (the sparse relation of :mod:`robofleet.search.neighbours`); no all-pairs term.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from .grids import EPS
-from .policy import StepContext, pick_uniform
+from .neighbours import Neighbours, from_dense, longest_waiting_chain
+from .policy import StepContext
+from .step_kernels import sequential_choices
 
 
 def choice_rounds(rank: np.ndarray, links: np.ndarray, active: np.ndarray) -> np.ndarray:
@@ -43,52 +46,16 @@ def choice_rounds(rank: np.ndarray, links: np.ndarray, active: np.ndarray) -> np
     ``rank (R, n)``: choice priority of each robot's vertex (higher chooses first);
     ``links (R, n, n)``: communication neighbours; ``active (R, n)``. ``round[i] = 0`` when
     no higher-priority neighbour exists, else ``1 + max(round[j])`` over them (the longest
-    waiting chain). Inactive robots get ``-1``.
+    waiting chain). Inactive robots get ``-1``. (The dense front door of
+    :func:`sparse_choice_rounds`.)
     """
-    n = rank.shape[-1]
-    waits_for = links & (rank[:, None, :] > rank[:, :, None]) & active[:, None, :] & active[:, :, None]
-    if not waits_for.any():
-        return np.where(active, 0, -1)
-    level = np.zeros(rank.shape, dtype=np.intp)
-    for _ in range(n):
-        new = np.where(waits_for, level[:, None, :] + 1, 0).max(axis=2, initial=0)
-        if np.array_equal(new, level):
-            break
-        level = new
-    return np.where(active, level, -1)
+    table = from_dense(links, np.zeros_like(links))
+    return sparse_choice_rounds(rank.ravel(), table, active.ravel()).reshape(rank.shape)
 
 
-def neighbour_options(ctx: StepContext, robots: np.ndarray, choice: np.ndarray,
-                      decided: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Options ``N_s,i(k)`` of ``robots`` from each one's own knowledge.
-
-    Returns ``(candidates (m, k) vertex ids, options (m, k) bool, unvisited (m, k) bool)``.
-    """
-    here = ctx.pos[robots]
-    cand = ctx.grid.candidates[here]
-    words, masks = ctx.grid.candidate_words
-    words, masks = words[here], masks[here]
-    options = ctx.sensing.edge_sensed_ok[here] & ~ctx.maps.test_words(2, robots, words, masks)
-    aware = ctx.rows(ctx.aware, robots)
-    if aware.any():
-        occupied = ((cand[:, :, None] == ctx.peers(ctx.pos, robots)[:, None, :]) & aware[:, None, :]).any(axis=-1)
-        told = ctx.rows(ctx.links, robots) & ctx.peers(decided, robots)
-        taken = ((cand[:, :, None] == ctx.peers(choice, robots)[:, None, :]) & told[:, None, :]).any(axis=-1)
-        options &= ~occupied & ~taken
-    unvisited = options & ~ctx.maps.test_words(0, robots, words, masks)
-    return cand, options, unvisited
-
-
-def farthest_from_average(ctx: StepContext, robots: np.ndarray, cand: np.ndarray, pool: np.ndarray,
-                          choice: np.ndarray, decided: np.ndarray) -> np.ndarray:
-    """Rule (2): keep the options at maximum distance from ``p_i,ave(k)`` (Definition 2.2)."""
-    reported = np.where(decided, choice, ctx.pos)
-    weights = ctx.rows(ctx.links, robots).astype(float)
-    points = ctx.grid.points[ctx.peers(reported, robots)]
-    p_ave = np.einsum("mn,mnd->md", weights, points) / weights.sum(axis=1, keepdims=True)
-    d = np.linalg.norm(ctx.grid.points[cand] - p_ave[:, None, :], axis=-1)
-    d = np.where(pool, d, -np.inf)
-    return pool & (d >= d.max(axis=1, keepdims=True) - EPS)
+def sparse_choice_rounds(rank: np.ndarray, table: Neighbours, active: np.ndarray) -> np.ndarray:
+    """:func:`choice_rounds` over the sparse relation: ``(N,)`` rounds (O(N log N + L))."""
+    return longest_waiting_chain(rank.astype(np.int64), table.start, table.peer, table.link, active)
 
 
 class SequentialPolicy:
@@ -102,34 +69,13 @@ class SequentialPolicy:
         self.repulsion = repulsion
 
     def choose(self, ctx: StepContext) -> tuple[np.ndarray, np.ndarray]:
-        """Steps 4–5 for all active robots; returns ``(choices (R·n,), rounds per run (R,))``."""
+        """Steps 4–5 for all active robots (one compiled pass, :func:`.step_kernels.sequential_choices`);
+        returns ``(choices (R·n,), rounds per run (R,))``."""
+        grid, maps, nb = ctx.grid, ctx.maps, ctx.neighbours
+        words, masks = grid.candidate_words
         choice = ctx.pos.copy()
-        decided = ~ctx.active
-        n = ctx.n
-        per_run = choice_rounds(ctx.grid.priority[ctx.pos].reshape(-1, n), ctx.links, ctx.active.reshape(-1, n))
-        rounds = per_run.ravel()
-        u = ctx.streams.uniforms()
-        n_rounds = int(rounds.max(initial=-1)) + 1
-        for r in range(n_rounds):
-            robots = np.flatnonzero(rounds == r)
-            cand, options, unvisited = neighbour_options(ctx, robots, choice, decided)
-            pool = np.where(unvisited.any(axis=1, keepdims=True), unvisited, options)
-            if self.repulsion:
-                social = ctx.rows(ctx.links, robots).any(axis=1)
-                if social.any():
-                    far = farthest_from_average(ctx, robots[social], cand[social], pool[social], choice, decided)
-                    pool[social] = far
-            choice[robots] = pick_uniform(cand, pool, u[robots], ctx.pos[robots])
-            decided[robots] = True
-            self.broadcast(ctx, robots, choice)
-        return choice, per_run.max(axis=1) + 1
-
-    @staticmethod
-    def broadcast(ctx: StepContext, robots: np.ndarray, choice: np.ndarray) -> None:
-        """The chooser adds its choice to its map and sends it to its neighbours (step 5)."""
-        senders, local = np.nonzero(ctx.rows(ctx.links, robots))
-        receivers = ctx.peer_ids(robots[senders], local)
-        if len(senders):
-            ctx.maps.set(0, np.concatenate([robots, receivers]), np.concatenate([choice[robots], choice[robots[senders]]]))
-        else:
-            ctx.maps.set(0, robots, choice[robots])
+        rounds = sequential_choices(ctx.pos, ctx.active, grid.priority, grid.candidates, words, masks,
+                                    ctx.sensing.edge_sensed_ok, grid.points, maps.layers, maps.touched, maps.dirty,
+                                    maps.unchecked, nb.start, nb.peer, nb.link, nb.aware, ctx.streams.uniforms(),
+                                    self.repulsion, ctx.n, choice)
+        return choice, rounds

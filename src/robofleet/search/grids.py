@@ -122,7 +122,7 @@ class Grid:
         area": a vertex is on the border when its distance to the outer boundary is below
         ``a + r_safe`` (no accessible vertex lies between it and the border).
         """
-        dist = self.workspace.boundary_distance(self.points)
+        dist = chunked(self.workspace.boundary_distance, self.points)
         return np.flatnonzero(self.accessible & (dist < self.a + self.r_safe - EPS))
 
 
@@ -191,8 +191,9 @@ def build_grid(workspace: Workspace, kind: GridKind | str, a: float, r_safe: flo
     if len(pts) == 0:
         raise ConfigError(f"grid: expected at least one lattice point inside the area, received none for a={a!r}")
     neighbours = neighbour_table(pts, a, DEGREE[kind])
-    accessible = workspace.clearance(pts) >= r_safe - EPS
-    block = edge_block_distance(workspace, pts, neighbours, r_safe)
+    clearance = chunked(workspace.clearance, pts)
+    accessible = clearance >= r_safe - EPS
+    block = edge_block_distance(workspace, pts, neighbours, r_safe, clearance >= a * (1 + 2e-6) + r_safe)
     edge_ok = (neighbours >= 0) & np.isinf(block) & accessible[:, None] & accessible[np.maximum(neighbours, 0)]
     block = np.where(edge_ok, np.inf, block)
     return Grid(kind, float(a), float(r_safe), pts, neighbours, accessible, edge_ok, block, choice_priority(pts), workspace)
@@ -249,16 +250,25 @@ def neighbour_table(points: np.ndarray, a: float, degree: int) -> np.ndarray:
     return table
 
 
-def edge_block_distance(workspace: Workspace, points: np.ndarray, neighbours: np.ndarray, r_safe: float) -> np.ndarray:
+def chunked(distance, points: np.ndarray, size: int = 1 << 16) -> np.ndarray:
+    """``distance(points)`` evaluated ``size`` points at a time (bounded temporary memory)."""
+    return np.concatenate([distance(points[i:i + size]) for i in range(0, len(points), size)] or [np.zeros(0)])
+
+
+def edge_block_distance(workspace: Workspace, points: np.ndarray, neighbours: np.ndarray, r_safe: float,
+                        clear: np.ndarray | None = None) -> np.ndarray:
     """Distance from each vertex to the nearest point blocking each of its edges.
 
     An edge ``(v, w)`` is blocked by every point of an obstacle or of the outside of the
     area that lies closer than ``r_safe`` to the segment ``vw`` (the robot would touch it
     while travelling). Returns ``(V, k)``: the distance from ``v`` to the nearest such
-    point, ``inf`` for a free edge or a missing neighbour.
+    point, ``inf`` for a free edge or a missing neighbour. ``clear (V,)`` may flag vertices
+    whose clearance is at least the edge length plus ``r_safe``: every point of their edges
+    keeps ``r_safe``, so only the other vertices' edges are measured (O(boundary), not O(V)).
     """
     out = np.full(neighbours.shape, np.inf)
-    src, slot = np.nonzero(neighbours >= 0)
+    measured = neighbours >= 0 if clear is None else (neighbours >= 0) & ~clear[:, None]
+    src, slot = np.nonzero(measured)
     if len(src) == 0:
         return out
     dst = neighbours[src, slot]

@@ -30,6 +30,7 @@ import math
 import numpy as np
 
 from .policy import StepContext
+from .step_kernels import levy_choices
 
 
 def mantegna_sigma(beta: float) -> float:
@@ -54,30 +55,17 @@ class LevyFlightPolicy:
 
     def new_flights(self, robots: np.ndarray, z: np.ndarray, u: np.ndarray, first: bool) -> None:
         """Draw length and turn for ``robots``; a robot's first flight takes a uniform heading."""
-        step = self.sigma_u * z[robots, 0] / np.maximum(np.abs(z[robots, 1]), 1e-12) ** (1 / self.beta)
-        self.remaining[robots] = np.clip(np.ceil(np.abs(step)), 1, self.max_flight)
+        zr = z[robots]
+        step = self.sigma_u * zr[:, 0] / np.maximum(np.abs(zr[:, 1]), 1e-12) ** (1 / self.beta)
+        self.remaining[robots] = np.minimum(np.maximum(np.ceil(np.abs(step)), 1), self.max_flight)
         if first:
             self.heading[robots] = 2 * np.pi * u[robots]
         else:
-            self.heading[robots] += self.turn_sigma * z[robots, 2]
-
-    def desired_direction(self, ctx: StepContext, robots: np.ndarray) -> np.ndarray:
-        """Heading plus the repulsive force of sensed robots and of sensed blocked edges."""
-        here = ctx.pos[robots]
-        d = np.empty((len(robots), 2))
-        d[:, 0] = np.cos(self.heading[robots])
-        d[:, 1] = np.sin(self.heading[robots])
-        push = ctx.sensing.wall_push[here]
-        sensed = ctx.rows(ctx.sensed, robots)
-        if sensed.any():
-            pts = ctx.grid.points
-            diff = pts[here][:, None, :] - pts[ctx.peers(ctx.pos, robots)]
-            dist2 = np.einsum("mnd,mnd->mn", diff, diff)
-            inv = np.where(sensed & (dist2 > 0), 1.0 / np.where(dist2 > 0, dist2, 1.0), 0.0)
-            push = push + np.einsum("mn,mnd->md", inv, diff)
-        return d + self.repulsion * push
+            self.heading[robots] += self.turn_sigma * zr[:, 2]
 
     def choose(self, ctx: StepContext) -> tuple[np.ndarray, np.ndarray]:
+        """One grid move of every active robot (:func:`.step_kernels.levy_choices`); a robot
+        whose flight is spent first draws a new one."""
         z, u = ctx.streams.normals(), ctx.streams.uniforms()
         robots = np.flatnonzero(ctx.active) if not ctx.active.all() else np.arange(len(ctx.pos))
         first = not self.started
@@ -85,24 +73,15 @@ class LevyFlightPolicy:
         ending = robots if first else robots[self.remaining[robots] <= 0]
         if len(ending):
             self.new_flights(ending, z, u, first)
-        here = ctx.pos[robots]
-        cand = ctx.grid.candidates[here]
-        words, masks = ctx.grid.candidate_words
-        options = ctx.sensing.edge_sensed_ok[here] & ~ctx.maps.test_words(2, robots, words[here], masks[here])
-        sensed = ctx.rows(ctx.sensed, robots)
-        if sensed.any():
-            options &= ~((cand[:, :, None] == ctx.peers(ctx.pos, robots)[:, None, :]) & sensed[:, None, :]).any(axis=-1)
-        units = ctx.grid.edge_units[here]
-        score = np.einsum("mkd,md->mk", units, self.desired_direction(ctx, robots))
-        score = np.where(options, score, -np.inf)
-        rows = np.arange(len(robots))
-        best = np.argmax(score, axis=1)
-        has = options[rows, best]
+        grid, nb = ctx.grid, ctx.neighbours
+        words, masks = grid.candidate_words
+        heading = self.heading[robots]
         choice = ctx.pos.copy()
-        choice[robots] = np.where(has, cand[rows, best], here)
-        slide = has & (score[rows, best] <= 0)
+        slot, slide = levy_choices(robots, ctx.pos, grid.candidates, words, masks, ctx.sensing.edge_sensed_ok,
+                                   ctx.maps.layers, nb.start, nb.peer, nb.sensed, bool(nb.sensed.any()), grid.points,
+                                   grid.edge_units, ctx.sensing.wall_push, np.cos(heading), np.sin(heading),
+                                   float(self.repulsion), self.remaining, choice)
         if slide.any():
-            step_vec = units[rows[slide], best[slide]]
+            step_vec = grid.edge_units[ctx.pos[robots[slide]], slot[slide]]
             self.heading[robots[slide]] = np.arctan2(step_vec[:, 1], step_vec[:, 0])
-        self.remaining[robots] = np.where(has, self.remaining[robots] - 1, 0)
         return choice, np.ones(len(ctx.pos) // ctx.n, dtype=np.intp)

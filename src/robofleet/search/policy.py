@@ -1,5 +1,4 @@
-"""Shared pieces of the choice policies: the per-step context, per-robot random streams and
-the uniform pick among options.
+"""Shared pieces of the choice policies: the per-step context and per-robot random streams.
 
 A policy has ``communicates`` (whether step 3 map exchange happens), ``collision_free``
 (whether it claims the invariants of Section 4) and ``choose(ctx) -> (choices, rounds)``.
@@ -14,6 +13,7 @@ import numpy as np
 from ..core.rng import keyed_generator
 from .grids import Grid
 from .knowledge import RobotMaps
+from .neighbours import Neighbours, from_dense
 from .sensing import SensingTables
 
 
@@ -54,11 +54,12 @@ class StepContext:
     """What the robots can use at step ``k``, for a batch of ``R`` independent runs of ``n``
     robots each (robot ``g`` is robot ``g % n`` of run ``g // n``; runs never interact).
 
-    ``pos (R·n,)`` vertex ids; ``active (R·n,)`` alive robots of unfinished runs;
-    ``links (R, n, n)`` communication neighbours (alive, within ``r_c``); ``sensed (R, n, n)``
-    robots within ``r_so`` (failed ones included); ``aware = links | sensed``; ``maps`` the
-    per-robot knowledge. Use :meth:`rows` / :meth:`peers` to read what a robot knows about
-    the robots of its own run.
+    ``pos (R·n,)`` vertex ids; ``active (R·n,)`` alive robots of unfinished runs; ``maps``
+    the per-robot knowledge; ``neighbours`` the sparse relation of
+    :class:`~.neighbours.Neighbours`: communication neighbours (``link``: alive, within
+    ``r_c``) and robots within ``r_so`` (``sensed``, failed ones included). A context can
+    also be given the relation as dense ``(R, n, n)`` matrices ``links``, ``sensed`` and
+    ``aware = links | sensed`` (hand-built contexts); the policies read ``neighbours`` only.
     """
 
     grid: Grid
@@ -68,34 +69,16 @@ class StepContext:
     pos: np.ndarray
     heading: np.ndarray
     active: np.ndarray
-    links: np.ndarray
-    sensed: np.ndarray
-    aware: np.ndarray
+    links: np.ndarray | None = None
+    sensed: np.ndarray | None = None
+    aware: np.ndarray | None = None
+    neighbours: Neighbours | None = None
+
+    def __post_init__(self) -> None:
+        if self.neighbours is None:
+            self.neighbours = from_dense(self.links, self.sensed)
 
     @property
     def n(self) -> int:
         """Robots per run."""
-        return self.links.shape[-1]
-
-    def rows(self, relation: np.ndarray, robots: np.ndarray) -> np.ndarray:
-        """``(m, n)``: the rows of ``robots`` in a per-run relation ``(R, n, n)``."""
-        return relation[robots // self.n, robots % self.n]
-
-    def peers(self, values: np.ndarray, robots: np.ndarray) -> np.ndarray:
-        """``(m, n, ...)``: ``values (R·n, ...)`` of the robots in the run of each of ``robots``."""
-        return values.reshape(-1, self.n, *values.shape[1:])[robots // self.n]
-
-    def peer_ids(self, robots: np.ndarray, local: np.ndarray) -> np.ndarray:
-        """Global ids of robot ``local`` of the run of each of ``robots``."""
-        return (robots // self.n) * self.n + local
-
-
-def pick_uniform(cand: np.ndarray, pool: np.ndarray, u: np.ndarray, stay: np.ndarray) -> np.ndarray:
-    """For each row, the option of ``pool`` with index ``⌊u · |pool|⌋``; ``stay`` if empty.
-
-    This is a uniform choice "with prob. ``1/|V|``" of rules (1) and (2).
-    """
-    count = pool.sum(axis=1)
-    index = np.minimum((u * count).astype(np.intp), np.maximum(count - 1, 0))
-    slot = np.argmax(np.cumsum(pool, axis=1) > index[:, None], axis=1)
-    return np.where(count > 0, cand[np.arange(len(cand)), slot], stay)
+        return self.neighbours.n

@@ -12,7 +12,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .policy import StepContext, pick_uniform
+from .policy import StepContext
+from .step_kernels import random_unvisited_choices
 
 
 class RandomUnvisitedPolicy:
@@ -22,16 +23,11 @@ class RandomUnvisitedPolicy:
     collision_free = False
 
     def choose(self, ctx: StepContext) -> tuple[np.ndarray, np.ndarray]:
-        robots = np.flatnonzero(ctx.active)
-        here = ctx.pos[robots]
-        cand = ctx.grid.candidates[here]
-        words, masks = ctx.grid.candidate_words
-        words, masks = words[here], masks[here]
-        options = ctx.sensing.edge_sensed_ok[here] & ~ctx.maps.test_words(2, robots, words, masks)
-        unvisited = options & ~ctx.maps.test_words(0, robots, words, masks)
-        pool = np.where(unvisited.any(axis=1, keepdims=True), unvisited, options)
-        u = ctx.streams.uniforms()
+        """Rule (1) from every active robot's own map (:func:`.step_kernels.random_unvisited_choices`)."""
+        grid, maps = ctx.grid, ctx.maps
+        words, masks = grid.candidate_words
         choice = ctx.pos.copy()
-        choice[robots] = pick_uniform(cand, pool, u[robots], here)
-        ctx.maps.set(0, robots, choice[robots])
+        random_unvisited_choices(np.flatnonzero(ctx.active), ctx.pos, grid.candidates, words, masks,
+                                 ctx.sensing.edge_sensed_ok, maps.layers, maps.touched, maps.dirty, maps.unchecked,
+                                 ctx.streams.uniforms(), choice)
         return choice, np.ones(len(ctx.pos) // ctx.n, dtype=np.intp)

@@ -25,20 +25,20 @@ from .grids import EPS, Grid
 
 @dataclass(frozen=True, eq=False)
 class SensingTables:
-    """Per-vertex sensing results.
+    """Per-vertex sensing results (O(V · (k + T)) memory).
 
     Attributes
     ----------
     edge_sensed_ok:
         ``(V, k)`` bool — what a robot on ``v`` believes about its edges: free
         unless a blockage was sensed within ``r_so`` (missing lattice neighbours are never
-        options).
+        options). Its true entries are also the neighbours step 2 records as discovered.
     target_visible:
         ``(V, T)`` bool — target ``t`` is within ``r_st`` of vertex ``v``.
-    self_bits, free_bits, inaccessible_bits:
-        ``(V, W)`` uint64 bit rows (see :mod:`~robofleet.search.knowledge`) of the vertex
-        itself, of the neighbours a robot on it senses reachable, and of the neighbours it
-        senses inaccessible — what step 2 adds to its map.
+    sensed_inaccessible:
+        ``(V, k)`` bool — the lattice neighbours a robot on ``v`` senses inaccessible (a
+        sensed blockage and the neighbour's clearance below ``r_safe``): step 2 records them
+        as blocked (and as visited in situation 2).
     exact:
         the sensed edge states equal the true ones everywhere (Assumption 2.4 in effect).
     wall_push:
@@ -47,18 +47,9 @@ class SensingTables:
 
     edge_sensed_ok: np.ndarray
     target_visible: np.ndarray
-    self_bits: np.ndarray
-    free_bits: np.ndarray
-    inaccessible_bits: np.ndarray
+    sensed_inaccessible: np.ndarray
     exact: bool
     wall_push: np.ndarray
-
-    def step2_rows(self, situation: int) -> np.ndarray:
-        """``(V, 4, W)``: what step 2 adds to the visited / discovered / blocked / sensed layers
-        of a robot standing on each vertex (situation 2 also records inaccessible neighbours
-        as visited)."""
-        visited = self.self_bits | self.inaccessible_bits if situation == 2 else self.self_bits
-        return np.stack([visited, self.free_bits, self.inaccessible_bits, self.self_bits], axis=1)
 
 
 def build_sensing(grid: Grid, targets: np.ndarray, r_so: float, r_st: float) -> SensingTables:
@@ -68,29 +59,11 @@ def build_sensing(grid: Grid, targets: np.ndarray, r_so: float, r_st: float) -> 
     edge_sensed_ok = exists & ~sensed_blocked
     targets = np.asarray(targets, dtype=float).reshape(-1, 2)
     d = np.linalg.norm(grid.points[:, None, :] - targets[None, :, :], axis=-1)
-    nb = np.maximum(grid.neighbours, 0)
-    inaccessible = exists & sensed_blocked & ~grid.accessible[nb]
-    ids = np.arange(grid.n_vertices)
+    inaccessible = exists & sensed_blocked & ~grid.accessible[grid.candidates]
     return SensingTables(
         edge_sensed_ok,
         d <= r_st + EPS,
-        vertex_bit_rows(grid.n_vertices, ids[:, None], np.ones((grid.n_vertices, 1), dtype=bool)),
-        vertex_bit_rows(grid.n_vertices, nb, edge_sensed_ok),
-        vertex_bit_rows(grid.n_vertices, nb, inaccessible),
+        inaccessible,
         bool(np.array_equal(edge_sensed_ok, grid.edge_ok)),
         np.where((exists & ~edge_sensed_ok)[:, :, None], -grid.edge_units, 0.0).sum(axis=1) / grid.a,
     )
-
-
-def vertex_bit_rows(n_vertices: int, members: np.ndarray, mask: np.ndarray) -> np.ndarray:
-    """``(V, W)`` uint64: row ``v`` has the bits of ``members[v][mask[v]]`` set."""
-    rows = np.zeros((len(members), bit_words(n_vertices)), dtype=np.uint64)
-    src, slot = np.nonzero(mask)
-    ids = members[src, slot]
-    np.bitwise_or.at(rows, (src, ids >> 6), np.uint64(1) << (ids & 63).astype(np.uint64))
-    return rows
-
-
-def bit_words(n_vertices: int) -> int:
-    """Number of 64-bit words of a vertex bit set."""
-    return -(-n_vertices // 64)

@@ -55,11 +55,16 @@ from .grids import EPS, Grid
 from .knowledge import RobotMaps
 from .levy_flight import LevyFlightPolicy
 from .metrics import RunRecord, run_results
+from .neighbours import Neighbours, collision_pairs, find_neighbours, no_neighbours
 from .policy import RobotStreams, StepContext
 from .random_baseline import RandomUnvisitedPolicy
 from .sensing import SensingTables, build_sensing
 from .spec import LABELS, Algorithm, Spec, border_vertices
+from .step_kernels import advance_clocks, may_collide, sense_and_record
 from .timing import MotionTiming, heading_change
+
+SMALL_TEAM = 32
+"""Teams up to this size check a move for collisions pair by pair (O(n²) per run)."""
 
 
 @dataclass(frozen=True)
@@ -118,15 +123,6 @@ def make_policy(problem: SearchProblem, algorithm: Algorithm,
                             max_flight=lv.max_flight, r_so=problem.r_so)
 
 
-def collision_pairs(pos: np.ndarray, choice: np.ndarray) -> np.ndarray:
-    """``(K, 3)`` rows ``(run, i, j)`` of robots that collide in a move: same destination, or
-    swapping along one edge. ``pos``, ``choice``: ``(R, n)``."""
-    same = choice[:, :, None] == choice[:, None, :]
-    swap = (choice[:, :, None] == pos[:, None, :]) & (choice[:, None, :] == pos[:, :, None]) & (choice != pos)[:, :, None]
-    hit = np.triu(np.ones(same.shape[1:], dtype=bool), k=1) & (same | swap)
-    return np.argwhere(hit)
-
-
 class SearchBatch:
     """State of ``R`` lockstep runs: true positions (observer) and per-robot knowledge (robots).
 
@@ -158,7 +154,7 @@ class SearchBatch:
         self.pos = np.concatenate([q.starts for q in problems]).astype(np.intp)
         self.failures = np.concatenate([q.failures for q in problems])
         self.starts = [q.starts for q in problems]
-        self.heading = np.zeros(N)
+        self.heading = np.zeros(N)  # read by trapezoidal rotation only
         self.alive = np.ones(N, dtype=bool)
         self.running = np.ones(self.R, dtype=bool)
         self.visited = np.zeros((self.R, grid.n_vertices), dtype=bool)
@@ -169,6 +165,8 @@ class SearchBatch:
         self.collisions = np.zeros(self.R, dtype=np.intp)
         self.obstacle_collisions = np.zeros(self.R, dtype=np.intp)
         self.rounds = np.zeros(self.R, dtype=np.intp)
+        self.no_collisions = np.zeros(self.R, dtype=np.intp)
+        self.no_collisions.flags.writeable = False
         timing = p.timing
         self.rc2 = (p.r_c + EPS) ** 2
         self.rso2 = (p.r_so + EPS) ** 2
@@ -176,14 +174,15 @@ class SearchBatch:
         self.fixed_rotation = timing.rotation_mode == "fixed"
         self.step_seconds = timing.rotation_seconds + self.translate_seconds
         self.penalty = timing.collision_penalty_moves * timing.move_time(grid.a)
-        self.step2_rows = p.sensing.step2_rows(p.situation)
         self.record = recorder is not None
         self.rec = recorder if recorder is not None else Recorder(p.max_steps, N)
         self.run_of = np.arange(N) // self.n
-        self.no_links = np.zeros((self.R, self.n, self.n), dtype=bool)
+        self.no_neighbours = no_neighbours(N, self.n)
         self.has_failures = bool((self.failures >= 0).any())
         self.active = self.alive.copy()
-        self.links = self.sensed = self.no_links
+        self.neighbours = self.no_neighbours
+        self.context = StepContext(grid, p.sensing, self.maps, self.streams, self.pos, self.heading, self.active,
+                                   neighbours=self.neighbours)
 
     def event(self, step: int, kind: str, **info: Any) -> None:
         """Record an event (single recorded runs), stamped with the run's clock."""
@@ -192,35 +191,28 @@ class SearchBatch:
 
     # -- steps 1-3 ----------------------------------------------------------------------
     def sense(self, step: int, live: np.ndarray) -> None:
-        """Steps 1–2: target and obstacle sensing at each live robot's own vertex."""
+        """Steps 1–2 at each live robot's own vertex (:func:`.step_kernels.sense_and_record`):
+        target sensing, a finder's broadcast to every live robot of its run, and obstacle
+        sensing recorded in each robot's own map (sensed-inaccessible neighbours blocked,
+        and visited in situation 2)."""
         p, maps = self.p, self.maps
-        here = self.pos[live]
-        self.visited[live // self.n, here] = True
-        seen = p.sensing.target_visible[here]
-        if seen.any():
-            if self.record:
-                new = seen.any(axis=0) & ~maps.targets.any(axis=0)
-                for t in np.flatnonzero(new):
-                    self.event(step, "target_found", robot=int(live[np.argmax(seen[:, t])]), target=int(t))
-            self.broadcast_found(live, seen)
-        maps.layers[live] |= self.step2_rows[here]
+        finder = sense_and_record(live, self.pos, self.n, self.visited, p.sensing.target_visible, maps.targets,
+                                  p.grid.candidates, p.sensing.edge_sensed_ok, p.sensing.sensed_inaccessible,
+                                  maps.layers, maps.touched, maps.dirty, maps.unchecked, p.situation == 2)
+        if self.record and finder.max(initial=-1) >= 0:
+            for t in np.flatnonzero(finder >= 0):
+                self.event(step, "target_found", robot=int(finder[t]), target=int(t))
 
-    def broadcast_found(self, live: np.ndarray, seen: np.ndarray) -> None:
-        """Step 1: a finder broadcasts the target to every live robot of its run."""
-        found = np.zeros((self.R, seen.shape[1]), dtype=bool)
-        np.logical_or.at(found, live // self.n, seen)
-        self.maps.broadcast_targets(found[live // self.n], live)
-
-    def detect_failures(self, step: int, near: np.ndarray) -> None:
+    def detect_failures(self, step: int, table: Neighbours, near: np.ndarray) -> None:
         """Step 3 failure information: live robots near a silent robot block its vertex.
 
-        ``near (R, n, n)``: robots within ``r_c`` or ``r_so`` of each other.
+        ``near (L,)``: the entries of ``table`` within ``r_c`` or ``r_so``.
         """
-        alive = self.alive.reshape(self.R, self.n)
-        runs, watchers, silent = np.nonzero(near & alive[:, :, None] & ~alive[:, None, :])
-        if not len(runs):
+        owner = table.owner
+        seen = near & self.alive[owner] & ~self.alive[table.peer]
+        if not seen.any():
             return
-        watchers, silent = runs * self.n + watchers, runs * self.n + silent
+        watchers, silent = owner[seen], table.peer[seen]
         if self.record:
             known = self.maps.test(2, watchers, self.pos[silent][:, None])[:, 0]
             for w, s in zip(watchers[~known], silent[~known]):
@@ -286,32 +278,43 @@ class SearchBatch:
         p, grid = self.p, self.p.grid
         if not p.sensing.exact:
             choice = self.bump(step, choice)
-        moving = choice != self.pos
-        per_run = np.zeros(self.R, dtype=np.intp)
+        per_run = self.count_collisions(step, choice)
+        if self.fixed_rotation:
+            advance_clocks(self.pos, choice, self.running, rounds, per_run, self.n, p.timing.decision_seconds,
+                           self.penalty, self.step_seconds, self.time, self.rounds)
+        else:
+            self.advance_turning_clocks(choice, rounds, per_run)
+        self.pos = choice
+        if self.record:
+            self.rec.put_state(step + 1, positions=grid.points[self.pos], vertex=self.pos[:, None], time=self.time[0])
+
+    def count_collisions(self, step: int, choice: np.ndarray) -> np.ndarray:
+        """Collisions of the move per run (observer side), each recorded as an event."""
+        per_run = self.no_collisions
         if self.n > 1 and self.may_collide(choice):
-            pairs = collision_pairs(self.pos.reshape(self.R, self.n), choice.reshape(self.R, self.n))
+            pairs = collision_pairs(self.pos, choice, self.n, self.p.grid.n_vertices)
             pairs = pairs[self.running[pairs[:, 0]]]
             per_run = np.bincount(pairs[:, 0], minlength=self.R)
             for r, i, j in pairs:
                 self.event(step, "collision", robots=[int(i), int(j)], vertex=int(choice[r * self.n + i]))
         self.collisions += per_run
-        dt = p.timing.decision_seconds * rounds + self.penalty * per_run
-        moved_runs = moving.reshape(self.R, self.n).any(axis=1)
+        return per_run
+
+    def advance_turning_clocks(self, choice: np.ndarray, rounds: np.ndarray, per_run: np.ndarray) -> None:
+        """Trapezoidal rotation: each running run's clock advances by its choice rounds, its
+        collision penalties and its slowest robot's turn and translation."""
+        dt = self.p.timing.decision_seconds * rounds + self.penalty * per_run
+        moving = choice != self.pos
         if moving.any():
-            if self.fixed_rotation:
-                dt = dt + self.step_seconds * moved_runs
-                vec = grid.points[choice[moving]] - grid.points[self.pos[moving]]
-                self.heading[moving] = np.arctan2(vec[:, 1], vec[:, 0])
-            else:
-                dt = dt + self.turn_and_translate(moving, choice)
+            dt = dt + self.turn_and_translate(moving, choice)
         self.time += np.where(self.running, dt, 0.0)
         self.rounds += np.where(self.running, rounds, 0)
-        self.pos = choice
-        if self.record:
-            self.rec.put_state(step + 1, positions=grid.points[self.pos], vertex=self.pos[:, None], time=self.time[0])
 
     def may_collide(self, choice: np.ndarray) -> bool:
-        """Cheap pre-check: a repeated destination in a run, or a robot moving onto an occupied vertex."""
+        """Cheap pre-check: a repeated destination in a run, or a robot moving onto an occupied
+        vertex (compiled pairwise scan for small teams, sorting for large ones)."""
+        if self.n <= SMALL_TEAM:
+            return may_collide(self.pos, choice, self.n)
         key = (np.arange(len(choice)) // self.n) * self.p.grid.n_vertices
         dest, here = key + choice, key + self.pos
         ordered = np.sort(dest)
@@ -353,9 +356,8 @@ class SearchBatch:
         """Steps 4–6 of step ``k`` (choose, move), then :meth:`observe` of step ``k + 1``;
         ``True`` when every run has stopped."""
         with self.rec.timed(k):
-            p = self.p
-            ctx = StepContext(p.grid, p.sensing, self.maps, self.streams, self.pos, self.heading, self.active,
-                              self.links, self.sensed, self.links | self.sensed)
+            ctx = self.context
+            ctx.pos, ctx.heading, ctx.active, ctx.neighbours = self.pos, self.heading, self.active, self.neighbours
             choice, rounds = self.policy.choose(ctx)
             self.move(k, choice, rounds)
             return self.observe(k + 1)
@@ -364,28 +366,20 @@ class SearchBatch:
         """Failures, steps 1–3 (sensing, failure detection, map exchange) and the stop check
         of steps 7–8 at ``step``; keeps the links and active robots for the next choice.
         ``True`` when every run has stopped."""
-        p, R, n = self.p, self.R, self.n
+        active = self.active  # alive, not stopped, of a running run (kept by stop_robots)
         if self.has_failures:
             self.fail_robots(step)
-        active = self.alive & ~self.stopped & self.running[self.run_of]
+            active = self.alive & ~self.stopped & self.running[self.run_of]
         live = np.flatnonzero(active)
-        links = sensed = self.no_links
-        if n > 1:
-            pts = p.grid.points[self.pos].reshape(R, n, 2)
-            diff = pts[:, :, None, :] - pts[:, None, :, :]
-            d2 = np.einsum("rijd,rijd->rij", diff, diff)
-            d2[:, np.arange(n), np.arange(n)] = np.inf
-            alive = self.alive.reshape(R, n)
-            in_range = d2 <= self.rc2
-            sensed = (d2 <= self.rso2) & alive[:, :, None]
-            links = in_range & alive[:, :, None] & alive[:, None, :]
+        table = self.no_neighbours
+        if self.n > 1:
+            table, near = find_neighbours(self.p.grid.points[self.pos], self.n, self.alive, self.rc2, self.rso2)
             if self.has_failures:
-                self.detect_failures(step, in_range | sensed)
+                self.detect_failures(step, table, near)
         self.sense(step, live)
-        if self.policy.communicates and links.any():
-            self.maps.exchange(links)
-        active = self.stop_robots(step, active)
-        self.active, self.links, self.sensed = active, links, sensed
+        if self.policy.communicates and len(table.peer) and table.link.any():
+            self.maps.exchange(table.owner[table.link], table.peer[table.link])
+        self.active, self.neighbours = self.stop_robots(step, active), table
         return not self.running.any()
 
     def fail_robots(self, step: int) -> None:

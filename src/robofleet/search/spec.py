@@ -37,6 +37,7 @@ from ..core.spec_blocks import WorkspaceSpec
 from ..core.workspace import Workspace
 from .assumptions import AssumptionReport, check_assumptions
 from .grids import VERTEX_BYTES, Grid, GridKind, build_grid, vertex_bound
+from .knowledge import BLOCK_WORDS, LAYERS, WORD
 from .timing import MotionTiming
 
 Point = tuple[float, float]
@@ -64,8 +65,11 @@ REQUIRED_FIELD = {"safety": "ranges.r_safe", "2.4": "ranges.r_so", "2.5": "range
 """The scenario field an error names when an assumption fails under ``require_guarantee``."""
 
 
-SENSING_ROWS = 8
-"""V-bit rows per vertex the sensing tables and step-2 rows hold (:mod:`.sensing`)."""
+SENSING_BYTES = 40
+"""Bytes per vertex of the sensing tables besides the target table (:mod:`.sensing`: two
+``(V, k ≤ 6)`` masks and the ``(V, 2)`` wall push); the target table adds one per target."""
+MAP_BYTES = LAYERS / 8 + 4 / (WORD * BLOCK_WORDS)
+"""Bytes per vertex of one robot's map (:mod:`robofleet.search.knowledge`: four bit layers, four block flags)."""
 
 
 class SearchWorkspaceSpec(WorkspaceSpec):
@@ -80,16 +84,27 @@ class SearchWorkspaceSpec(WorkspaceSpec):
     def _assumption_2_1(self):
         if self.regions:
             raise ScenarioError("regions", "no regions (the grid search has none)", [r.name for r in self.regions])
-        area = shapely.Polygon(self.bounds_vertices())
-        polygons = [shapely.Polygon(p) for p in self.obstacle_polygons()]
-        for k, poly in enumerate(polygons):
-            if not area.contains(poly):
-                raise ScenarioError(f"obstacles.{k}", "an obstacle inside the area", poly.exterior.coords[:-1])
-            for j in range(k):
-                if poly.intersection(polygons[j]).area > 0:
-                    raise ScenarioError(f"obstacles.{k}", f"non-overlapping obstacles (Assumption 2.1; overlaps obstacle {j})",
-                                        poly.exterior.coords[:-1])
+        problem = obstacle_problem(self.model_dump_json())
+        if problem is not None:
+            raise ScenarioError(*problem)
         return self
+
+
+@lru_cache(maxsize=32)
+def obstacle_problem(workspace_json: str) -> tuple[str, str, list] | None:
+    """The first obstacle outside the area or overlapping an earlier one (Assumption 2.1),
+    as ``ScenarioError`` arguments, or ``None``; once per process per workspace block."""
+    workspace = WorkspaceSpec.model_validate_json(workspace_json)
+    area = shapely.Polygon(workspace.bounds_vertices())
+    polygons = [shapely.Polygon(p) for p in workspace.obstacle_polygons()]
+    for k, poly in enumerate(polygons):
+        if not area.contains(poly):
+            return f"obstacles.{k}", "an obstacle inside the area", poly.exterior.coords[:-1]
+        for j in range(k):
+            if poly.intersection(polygons[j]).area > 0:
+                return (f"obstacles.{k}", f"non-overlapping obstacles (Assumption 2.1; overlaps obstacle {j})",
+                        poly.exterior.coords[:-1])
+    return None
 
 
 class GridSpec(SpecModel):
@@ -197,11 +212,11 @@ class Spec(SpecModel):
     # -- memory budget (input validation, robofleet.core.budget) --------------------------
     def run_size(self) -> RunSize:
         """What a run holds: per robot and step a position, a vertex and a clock; the grid
-        (at most :func:`.grids.vertex_bound` vertices of the area's bounding box), its sensing tables (bit rows of V × V: quadratic in V) and every robot's map."""
-        lower, upper = self.workspace.bounds_vertices().min(axis=0), self.workspace.bounds_vertices().max(axis=0)
-        vertices = vertex_bound(*(upper - lower), self.grid.a)
-        n = self.robots.n
-        extra = VERTEX_BYTES * vertices + SENSING_ROWS * vertices**2 / 8 + n * vertices * (4 / 8 + len(self.targets))
+        (at most :func:`.grids.vertex_bound` vertices of the area's bounding box), its sensing
+        tables (linear in V) and every robot's map (four bits per vertex and its targets)."""
+        vertices = area_vertex_bound(self.workspace.model_dump_json(), self.grid.a)
+        n, targets = self.robots.n, len(self.targets)
+        extra = (VERTEX_BYTES + SENSING_BYTES + targets) * vertices + n * (MAP_BYTES * vertices + targets)
         return RunSize(self.max_steps, n, 32, "max_steps", "robots.count" if self.robots.count is not None else "robots.starts",
                        int(min(extra, 2**62)), "grid, sensing tables and maps", "grid.a")
 
@@ -217,12 +232,10 @@ class Spec(SpecModel):
                              r.r_rob, r.r_so, r.r_st, r.r_c)
 
     def _check_targets(self, grid: Grid) -> None:
-        ws = grid.workspace
-        for k, t in enumerate(self.targets):
-            if not shapely.intersects_xy(ws.boundary_polygon, *t):
-                raise ScenarioError(f"targets.{k}", "a target inside the area", list(t))
-            if any(shapely.intersects_xy(p, *t) for p in ws.obstacle_polygons):
-                raise ScenarioError(f"targets.{k}", "a target outside every obstacle (targets lie in A_d)", list(t))
+        problem = target_problem(grid, tuple(map(tuple, self.targets)))
+        if problem is not None:
+            k, expected = problem
+            raise ScenarioError(f"targets.{k}", expected, list(self.targets[k]))
 
     def _check_robots(self, grid: Grid) -> None:
         n = self.robots.n
@@ -251,6 +264,28 @@ class Spec(SpecModel):
             raise ScenarioError(REQUIRED_FIELD[c.name], f"{what} since require_guarantee is true", c.evidence or round(c.value, 6))
         if self.situation == 2 and self.grid.kind is not GridKind.TRIANGULAR:
             raise ScenarioError("grid.kind", "triangular when require_guarantee is true in situation 2 (Section 3)", self.grid.kind.value)
+
+
+@lru_cache(maxsize=64)
+def target_problem(grid: Grid, targets: tuple) -> tuple[int, str] | None:
+    """The first target outside the area or inside an obstacle (targets lie in ``A_d``), as
+    ``(index, expectation)``, or ``None``; once per process per grid and target list."""
+    ws = grid.workspace
+    obstacles = ws.obstacle_polygons
+    for k, t in enumerate(targets):
+        if not shapely.intersects_xy(ws.boundary_polygon, *t):
+            return k, "a target inside the area"
+        if any(shapely.intersects_xy(p, *t) for p in obstacles):
+            return k, "a target outside every obstacle (targets lie in A_d)"
+    return None
+
+
+@lru_cache(maxsize=64)
+def area_vertex_bound(workspace_json: str, a: float) -> float:
+    """:func:`.grids.vertex_bound` of the bounding box of a workspace block's area."""
+    bounds = WorkspaceSpec.model_validate_json(workspace_json).bounds_vertices()
+    lower, upper = bounds.min(axis=0), bounds.max(axis=0)
+    return vertex_bound(*(upper - lower), a)
 
 
 @lru_cache(maxsize=32)

@@ -6,7 +6,7 @@ asserts there are none).
 
 Layers, bottom to top (docs/architecture.md): ``core``; ``dynamics`` and ``viz`` (each
 importing ``core`` only); the families; ``scenarios``; ``experiments`` and ``envs``; ``testing``;
-``cli``; the package's face ``robofleet/__init__.py``. A module imports its own package
+``cli``; the package's face ``robofleet/__init__.py`` and ``__main__.py``. A module imports its own package
 and lower layers only; families never import each other.
 """
 
@@ -91,9 +91,10 @@ class ImportGraph:
 
 
 def package_of(module: str) -> str:
-    """``robofleet.core.trace`` -> ``core``; the package's face -> ``""``."""
+    """``robofleet.core.trace`` -> ``core``; the package's face (``robofleet`` and
+    ``robofleet.__main__``, the ``python -m robofleet`` entry) -> ``""``."""
     parts = module.split(".")
-    return parts[1] if len(parts) > 1 else ""
+    return parts[1] if len(parts) > 1 and parts[1] != "__main__" else ""
 
 
 def read_graph(root: Path | None = None) -> ImportGraph:

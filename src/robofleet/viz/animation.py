@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Iterator
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from typing import Any
 
@@ -11,12 +12,15 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
-from matplotlib.animation import FuncAnimation, PillowWriter
 from matplotlib.lines import Line2D
 from matplotlib.transforms import blended_transform_factory
+from PIL import Image
 
 from ..core.progress import tracked
 from ..core.trace import Trace
+
+PALETTE_THREADS = 2
+"""Threads computing the GIF frames' palettes while the main thread draws."""
 
 
 def save_figure(fig: plt.Figure, path: str | Path, dpi: int = 120, tight: bool = False) -> Path:
@@ -31,21 +35,72 @@ def save_figure(fig: plt.Figure, path: str | Path, dpi: int = 120, tight: bool =
 
 
 def save_gif(fig: plt.Figure, update: Callable[[int], object], frames: Iterable[int], path: str | Path, fps: int = 10,
-             progress: bool = True) -> Path:
+             progress: bool = True, blit: bool = False) -> Path:
     """Render ``update(frame)`` for every item of ``frames`` into a GIF at ``path``.
 
-    ``update`` redraws the figure for one frame (it may return artists; blitting is off).
-    A progress bar counts the rendered frames (on a terminal, unless ``progress`` is
-    false). The figure is closed afterwards.
+    ``update`` sets the figure up for one frame. Each frame is drawn once on the Agg
+    canvas and written as matplotlib's ``PillowWriter`` writes it (the same bytes), without
+    its second draw per frame; the frames' palettes are computed in threads while the next
+    frames are drawn. With ``blit``, ``update`` returns the artists it changes (and nothing
+    else may change): everything else is drawn once, and each frame redraws only those
+    artists over it. A progress bar counts the rendered frames (on a terminal, unless
+    ``progress`` is false). The figure is closed afterwards.
     """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     frames = list(frames)
-    anim = FuncAnimation(fig, update, frames=frames, blit=False, cache_frame_data=False)
-    with tracked(len(frames), f"rendering {path.name}", enabled=progress) as advance:
-        anim.save(str(path), writer=PillowWriter(fps=fps), progress_callback=lambda i, n: advance())
+    render = blitted_frames if blit else drawn_frames
+    with tracked(len(frames), f"rendering {path.name}", enabled=progress) as advance, \
+            ThreadPoolExecutor(PALETTE_THREADS) as palettes:
+        pending = []
+        for image in render(fig, update, frames):
+            pending.append(palettes.submit(gif_frame, image))
+            advance()
+        images = [future.result() for future in pending]
+    write_gif(images, path, fps)
     plt.close(fig)
     return path
+
+
+def drawn_frames(fig: plt.Figure, update: Callable[[int], object], frames: list[int]) -> Iterator[Image.Image]:
+    """Each frame: ``update`` it, draw the whole figure once, take its pixels."""
+    for frame in frames:
+        update(frame)
+        fig.canvas.draw()
+        yield canvas_image(fig)
+
+
+def blitted_frames(fig: plt.Figure, update: Callable[[int], object], frames: list[int]) -> Iterator[Image.Image]:
+    """The figure without the artists ``update`` returns, drawn once; each frame restores
+    it and draws those artists (in the order returned) on top."""
+    moving = list(update(frames[0]) or ())
+    for artist in moving:
+        artist.set_animated(True)
+    fig.canvas.draw()
+    background = fig.canvas.copy_from_bbox(fig.bbox)
+    for frame in frames:
+        update(frame)
+        fig.canvas.restore_region(background)
+        for artist in moving:
+            fig.draw_artist(artist)
+        yield canvas_image(fig)
+
+
+def canvas_image(fig: plt.Figure) -> Image.Image:
+    """The canvas's pixels: RGB when opaque, else RGBA (as ``PillowWriter`` keeps them)."""
+    image = Image.frombytes("RGBA", fig.canvas.get_width_height(), bytes(fig.canvas.buffer_rgba()))
+    return image if image.getextrema()[3][0] < 255 else image.convert("RGB")
+
+
+def gif_frame(image: Image.Image) -> Image.Image:
+    """An RGB frame in its own adaptive palette, as Pillow's GIF writer would convert it
+    (Pillow computes palettes without holding the GIL); other frames are left to the writer."""
+    return image.convert("P", palette=Image.Palette.ADAPTIVE) if image.mode == "RGB" else image
+
+
+def write_gif(images: list[Image.Image], path: Path, fps: int) -> None:
+    """An endlessly looping GIF of ``images``, ``1000 / fps`` ms each."""
+    images[0].save(path, save_all=True, append_images=images[1:], duration=int(1000 / fps), loop=0)
 
 
 def frame_indices(n_steps: int, max_frames: int = 150) -> list[int]:

@@ -186,9 +186,9 @@ def animate_trace(trace: Trace, path: str | Path, max_frames: int = 150, fps: in
             else:
                 disc.set_color("tab:blue")
         title.set_text(f"{run_title(trace)}\nt = {t * dt:.1f} s · waiting: {int(waiting[min(t, len(waiting) - 1)].sum())}")
-        return discs
+        return [*discs, title]
 
-    return save_gif(fig, update, frames, path, fps=fps)
+    return save_gif(fig, update, frames, path, fps=fps, blit=True)
 
 
 def _plan_lengths(plan: np.ndarray) -> np.ndarray:
