@@ -120,12 +120,13 @@ def main() -> None:
     if args.worker:
         worker(args.seeds)
         return
-    if not args.baseline:
-        parser.error("--baseline is required")
     sys.path.insert(0, str(Path(__file__).parent))
     from _machine import machine
 
     print(machine())
+    if not args.baseline:
+        print("nothing to compare: pass --baseline OLD/src (the src folder of an unchanged checkout)")
+        return
     here = str(Path(__file__).resolve().parents[1] / "src")
     after, before = run(here, args.seeds), run(args.baseline, args.seeds)
     differing = [case for case in after if after[case] != before.get(case)]
