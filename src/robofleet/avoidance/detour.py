@@ -10,7 +10,7 @@ roadmap) with a disc around each of them; when a still neighbour closes a gap, t
 goes round the other way. The idea and its thresholds are ours; all of it is
 decentralized and communication-free:
 
-* **Still** (:class:`StillTracker`): an estimate that stays within ``still_radius`` of its
+* **Still** (:class:`.liveness.StillTracker`): an estimate that stays within ``still_radius`` of its
   running mean (time constant ``still_steps / 2``) for ``still_steps`` consecutive steps,
   the test the yielding rule uses for parked robots (:class:`.liveness.ParkingState`).
   A robot applies it to its own estimate (am I blocked?) and to the estimates of the
@@ -39,9 +39,11 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy.sparse.csgraph import dijkstra
+from scipy.spatial import cKDTree
 from shapely.geometry import Point
 
 from . import navigation
+from .liveness import StillTracker
 from .navigation import Halfplanes, halfplanes, segments_free
 
 _EPS = 1e-9
@@ -51,7 +53,6 @@ _EPS = 1e-9
 class DetourParams:
     """Thresholds of the detour rule (module docstring)."""
 
-    enabled: bool = True
     still_radius: float = 0.4
     still_steps: int = 50
     block_steps: int = 30
@@ -70,27 +71,6 @@ def disc_polygons(centres: np.ndarray, radius: np.ndarray | float) -> list[np.nd
         area2 = np.sum(ring[:, 0] * np.roll(ring[:, 1], -1) - np.roll(ring[:, 0], -1) * ring[:, 1])
         out.append(ring if area2 > 0 else ring[::-1])
     return out
-
-
-@dataclass
-class StillTracker:
-    """Running mean and still count of every estimate a robot sees (module docstring)."""
-
-    mean: np.ndarray
-    still: np.ndarray
-
-    @classmethod
-    def initial(cls, n: int, dim: int = 2) -> StillTracker:
-        return cls(np.full((n, dim), np.nan), np.zeros(n, np.int32))
-
-    def observe(self, estimates: np.ndarray, radius: float, steps: int) -> np.ndarray:
-        """Update with this step's estimates; return the still counts ``(N,)``."""
-        fresh = ~np.isfinite(self.mean[:, 0])
-        self.mean[fresh] = estimates[fresh]
-        self.mean += (estimates - self.mean) * (2.0 / steps)
-        near_mean = np.linalg.norm(estimates - self.mean, axis=1) < radius
-        self.still = np.where(near_mean, self.still + 1, 0)
-        return self.still
 
 
 @dataclass(frozen=True)
@@ -225,7 +205,5 @@ class Detours:
         """``(N,)``: some other robot in the local box holds still."""
         if not still.any():
             return np.zeros(len(estimates), bool)
-        diff = np.abs(estimates[:, None] - estimates[still][None])
-        inside = np.all(diff <= self.local_box, axis=2)
-        inside[np.flatnonzero(still), np.arange(still.sum())] = False
-        return inside.any(axis=1)
+        in_box = cKDTree(estimates[still]).query_ball_point(estimates, self.local_box, p=np.inf, return_length=True)
+        return in_box - still > 0  # a still robot finds itself in its own box

@@ -99,6 +99,29 @@ class LivenessParams:
 
 
 @dataclass
+class StillTracker:
+    """Running mean and still count of every estimate, as the neighbours see it: an estimate
+    holds still after ``steps`` consecutive steps within ``radius`` of its running mean
+    (time constant ``steps / 2``). The yielding rule and :mod:`.detour` share it."""
+
+    mean: np.ndarray
+    still: np.ndarray
+
+    @classmethod
+    def initial(cls, n: int, dim: int = 2) -> StillTracker:
+        return cls(np.full((n, dim), np.nan), np.zeros(n, np.int32))
+
+    def observe(self, estimates: np.ndarray, radius: float, steps: int) -> np.ndarray:
+        """Update with this step's estimates; return the still counts ``(N,)``."""
+        fresh = ~np.isfinite(self.mean[:, 0])
+        self.mean[fresh] = estimates[fresh]
+        self.mean += (estimates - self.mean) * (2.0 / steps)
+        near_mean = np.linalg.norm(estimates - self.mean, axis=1) < radius
+        self.still = np.where(near_mean, self.still + 1, 0)
+        return self.still
+
+
+@dataclass
 class ParkingState:
     """Per-robot memory of the yielding rule (a robot keeps only its own)."""
 
@@ -108,19 +131,12 @@ class ParkingState:
     clear: np.ndarray
     target: np.ndarray
     yields: np.ndarray
-    mean: np.ndarray  # running mean of each robot's estimate, as its neighbours see it
-    still: np.ndarray  # steps each robot's estimate has stayed near that mean
+    stillness: StillTracker  # what the neighbours see of each robot's estimate
 
     def observe(self, estimates: np.ndarray, params: LivenessParams) -> np.ndarray:
         """Update what the neighbours see of each robot and return which robots look
-        parked: estimate within ``still_radius`` of its running mean (time constant
-        ``still_steps / 2``) for ``still_steps`` consecutive steps."""
-        fresh = ~np.isfinite(self.mean[:, 0])
-        self.mean[fresh] = estimates[fresh]
-        self.mean += (estimates - self.mean) * (2.0 / params.still_steps)
-        near_mean = np.linalg.norm(estimates - self.mean, axis=1) < params.still_radius
-        self.still = np.where(near_mean, self.still + 1, 0)
-        return self.still >= params.still_steps
+        parked: held still (:class:`StillTracker`) for ``still_steps`` steps."""
+        return self.stillness.observe(estimates, params.still_radius, params.still_steps) >= params.still_steps
 
     def settled(self, estimates: np.ndarray, goals: np.ndarray, tolerance: float) -> bool:
         """Every robot that is stepping aside or returning is still (or again) within
@@ -131,8 +147,7 @@ class ParkingState:
     @classmethod
     def initial(cls, n: int, dim: int = 2) -> ParkingState:
         counters = [np.zeros(n, np.int32) for _ in range(3)]
-        return cls(np.zeros(n, np.int8), *counters, np.zeros((n, dim)), np.zeros(n, np.int64),
-                   np.full((n, dim), np.nan), np.zeros(n, np.int32))
+        return cls(np.zeros(n, np.int8), *counters, np.zeros((n, dim)), np.zeros(n, np.int64), StillTracker.initial(n, dim))
 
 
 def close_pairs(estimates: np.ndarray, near: float, local_box: float = np.inf) -> np.ndarray:

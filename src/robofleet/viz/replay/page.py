@@ -53,10 +53,16 @@ def write_html(scene: Scene, path: str | Path) -> Path:
     ConfigError
         ``path`` cannot be written.
     """
+    return write_page(replay_html(scene), path)
+
+
+def write_page(text: str, path: str | Path) -> Path:
+    """Write one HTML page to ``path`` (parent folders created); return the path, or raise
+    :class:`ConfigError` naming it when it cannot be written."""
     path = Path(path)
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
-        path.write_text(replay_html(scene), encoding="utf-8")
+        path.write_text(text, encoding="utf-8")
     except OSError as exc:
         raise ConfigError(f"{path}: expected a writable file path, received one that cannot be written ({exc.strerror})") from None
     return path

@@ -9,6 +9,7 @@ import re
 from pathlib import Path
 
 from ...core.errors import ConfigError
+from .page import write_page
 
 FIGURE_SUFFIXES = {".png": "image/png", ".gif": "image/gif"}
 STYLE = """body{font:14px/1.45 system-ui,sans-serif;color:#222;max-width:1200px;margin:0 auto;padding:12px 20px}
@@ -94,10 +95,4 @@ def report_html(directory: str | Path, title: str | None = None) -> str:
 
 def write_report(directory: str | Path, path: str | Path) -> Path:
     """Write :func:`report_html` of ``directory`` to ``path``; return the path."""
-    path = Path(path)
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        path.write_text(report_html(directory), encoding="utf-8")
-    except OSError as exc:
-        raise ConfigError(f"{path}: expected a writable file path, received one that cannot be written ({exc.strerror})") from None
-    return path
+    return write_page(report_html(directory), path)
