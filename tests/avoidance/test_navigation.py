@@ -1,5 +1,6 @@
 """The roadmap of :mod:`robofleet.avoidance.navigation`: exact against brute force on
-small inputs, and robots of every 2-D model get out of a trap the goal alone leads into."""
+small inputs, robots of every 2-D model get out of a trap the goal alone leads into, and
+a gap a robot can enter but not pass counts as closed."""
 
 import networkx as nx
 import numpy as np
@@ -9,6 +10,8 @@ from shapely.geometry import LineString, Point, Polygon
 import robofleet
 from robofleet.avoidance.navigation import (
     Roadmap,
+    exit_points,
+    gap_blockers,
     grown_polygons,
     halfplanes,
     segments_free,
@@ -92,3 +95,52 @@ def test_without_the_roadmap_the_double_integrator_stays_in_the_cup():
     get out: the test above is not vacuous."""
     out = robofleet.simulate(robofleet.load_scenario(cup("double_integrator", False)), seed=1).results
     assert not out["success"]
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_exit_points_land_on_the_boundary_of_the_polygon_they_leave(seed):
+    rng = np.random.default_rng(seed)
+    polys = grown_polygons(random_polygons(rng, 1), 0.5)
+    shape = Polygon(polys[0])
+    points = rng.uniform(-4, 4, (400, 2))
+    moved = exit_points(points, halfplanes(polys))
+    inside = np.array([shape.contains(Point(p)) for p in points])
+    assert inside.any()
+    np.testing.assert_array_equal(moved[~inside], points[~inside])
+    assert max(shape.exterior.distance(Point(p)) for p in moved[inside]) < 1e-5
+    assert not any(shape.contains(Point(p)) for p in moved[inside])
+
+
+def box(cx: float, cy: float, w: float, h: float) -> np.ndarray:
+    return np.array([[cx - w / 2, cy - h / 2], [cx + w / 2, cy - h / 2], [cx + w / 2, cy + h / 2], [cx - w / 2, cy + h / 2]])
+
+
+def gap(width: float, passage_sigmas: float = 1.5) -> dict:
+    """One robot crossing between two boxes ``width`` apart (σ = 0.1 m: the cells keep
+    0.61 m from each box, so the estimate has ``width − 1.21`` m to move in)."""
+    h = width / 2
+    return {"family": "avoidance", "name": "gap", "method": "buavc", "max_steps": 400,
+            "workspace": {"bounds": [-5, -5, 5, 5], "obstacle_sigma": 0.1,
+                          "obstacles": [{"center": [0, h + 0.5], "size": [0.6, 1.0]}, {"center": [0, -h - 0.5], "size": [0.6, 1.0]}]},
+            "robots": {"n": 1, "radius": 0.2, "v_max": 0.4, "sigma": 0.1,
+                       "layout": {"kind": "explicit", "starts": [[-3.0, 0.0]], "goals": [[3.0, 0.0]]}},
+            "liveness": {"passage_sigmas": passage_sigmas}}
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_a_gap_too_narrow_to_pass_is_closed_and_the_robot_goes_round(seed):
+    out = robofleet.simulate(robofleet.load_scenario(gap(1.2)), seed=seed).results
+    assert out["success"] and out["collision_steps"] == 0
+
+
+def test_without_the_passage_margin_the_robot_sticks_in_the_gap():
+    """The same gap with the roadmap at the cells' clearance: the test above is not vacuous."""
+    assert not any(robofleet.simulate(robofleet.load_scenario(gap(1.2, passage_sigmas=0.0)), seed=s).results["success"] for s in range(3))
+
+
+def test_gap_blockers_close_exactly_the_gaps_narrower_than_the_width():
+    boxes = [box(0, 1.2, 0.6, 1.0), box(0, -1.2, 0.6, 1.0), box(3.0, 0.0, 0.6, 0.6)]  # gaps 1.4 m and ≥ 2.4 m
+    assert len(gap_blockers(boxes, 1.39)) == 0
+    (wall,) = gap_blockers(boxes, 1.41)
+    assert Polygon(wall).intersects(LineString([(-1, 0), (1, 0)]))  # across the 1.4 m gap
+    assert not segments_free(np.array([[-1.0, 0.0]]), np.array([[1.0, 0.0]]), halfplanes([wall]))[0]

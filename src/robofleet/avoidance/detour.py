@@ -91,12 +91,14 @@ def _inside(points: np.ndarray, planes: Halfplanes) -> np.ndarray:
     return np.any(np.all(slack < -1e-6, axis=2), axis=1)
 
 
-def _pair_lengths(a: np.ndarray, b: np.ndarray, planes: list[Halfplanes]) -> np.ndarray:
-    """``(len(a), len(b))`` lengths of segments free of every polygon set, ``inf`` else."""
+def _pair_lengths(a: np.ndarray, b: np.ndarray, planes: list[Halfplanes], seen_a=None, seen_b=None) -> np.ndarray:
+    """``(len(a), len(b))`` lengths of segments free of every polygon set, ``inf`` else;
+    ``seen_a``/``seen_b`` (default ``a``/``b``) are where the segments are tested from."""
+    seen_a, seen_b = (a if seen_a is None else seen_a), (b if seen_b is None else seen_b)
     ia, ib = np.repeat(np.arange(len(a)), len(b)), np.tile(np.arange(len(b)), len(a))
     free = np.ones(len(ia), bool)
     for p in planes:
-        free &= segments_free(a[ia], b[ib], p)
+        free &= segments_free(seen_a[ia], seen_b[ib], p)
     return np.where(free, np.linalg.norm(a[ia] - b[ib], axis=1), np.inf).reshape(len(a), len(b))
 
 
@@ -115,13 +117,15 @@ def detour_graph(roadmap: navigation.Roadmap, estimate: np.ndarray, goal: np.nda
     lo, hi = roadmap.lower, roadmap.upper
     ok = np.all((extra >= lo) & (extra <= hi), axis=1) & ~_inside(extra, roadmap.grown_planes) & ~_inside(extra, disc_planes)
     ends = np.vstack([estimate, goal, extra[ok]])
+    seen = ends.copy()  # the estimate and the goal are seen from where they leave the sight polygons
+    seen[:2] = navigation.exit_points(ends[:2], roadmap.sight)
     both = [roadmap.sight, disc_planes]
     v = len(static)
     n = len(ends) + v
     lengths = np.full((n, n), np.inf)
-    lengths[: len(ends), : len(ends)] = _pair_lengths(ends, ends, both)
+    lengths[: len(ends), : len(ends)] = _pair_lengths(ends, ends, both, seen, seen)
     if v:
-        cross = _pair_lengths(ends, static, both)
+        cross = _pair_lengths(ends, static, both, seen)
         lengths[: len(ends), len(ends):], lengths[len(ends):, : len(ends)] = cross, cross.T
         old = roadmap.node_edges[np.ix_(keep, keep)]
         lengths[len(ends):, len(ends):] = np.where(np.isfinite(old), _pair_lengths(static, static, [disc_planes]), np.inf)

@@ -78,6 +78,9 @@ class LivenessParams:
     face_near: a neighbour's face closer than this [m] to the estimate counts as blocking.
     detour: blocked robots re-plan around neighbours that hold still (:mod:`.detour`).
     detour_steps: the most steps one such re-plan lasts.
+    passage_sigmas: the roadmap closes gaps between obstacles narrower than
+        1.8 × (the cells' clearance + this many σ of the position estimate), which a
+        jittering estimate cannot pass (:mod:`.navigation`).
     """
 
     enabled: bool = False
@@ -96,6 +99,7 @@ class LivenessParams:
     face_near: float = 0.5
     detour: bool = True
     detour_steps: int = 300
+    passage_sigmas: float = 1.5
 
 
 @dataclass
@@ -272,12 +276,24 @@ def steering_goals(estimates: np.ndarray, goals: np.ndarray, arrived: np.ndarray
     sub-goal instead of the goal (``navigation``), the right-hand turn when a
     neighbour's face blocks the projected goal, and yielding by arrived robots
     (:func:`parking_targets`). The model's own controller then projects the result onto
-    the cell, so its in-cell guarantee is unchanged.
+    the cell, so its in-cell guarantee is unchanged. The turn is not taken when the turned
+    goal projects onto an obstacle's face: in a lane between an obstacle on its right and
+    a neighbour on its left, a double integrator turned into the obstacle and stopped
+    there (measured, ``double_integrator`` seeds 0–199: 197/200 with every turn, 200/200
+    without the turns onto an obstacle's face).
     """
     heading = goals if navigation is None else navigation.step(estimates, arrived)[0]
     proj = project_onto_cells(heading, cells)
     turn = ~arrived & ~proj.empty & blocked_by_robot(estimates, proj.active, cells, params.face_near)
     if params.right_hand_angle > 0 and turn.any():
-        heading = np.where(turn[:, None], right_hand_goals(estimates, heading, np.deg2rad(params.right_hand_angle)), heading)
+        turned = right_hand_goals(estimates, heading, np.deg2rad(params.right_hand_angle))
+        turn &= ~on_obstacle_face(project_onto_cells(turned, cells).active, cells)
+        heading = np.where(turn[:, None], turned, heading)
     parked_target, moving = parking_targets(estimates, goals, arrived, parking, params, local_box, tolerance)
     return np.where(arrived[:, None], parked_target, heading), moving
+
+
+def on_obstacle_face(active: np.ndarray, cells) -> np.ndarray:
+    """``(N,)``: an active constraint of the projection is an obstacle's face."""
+    rows = np.arange(len(active))[:, None]
+    return np.any((active >= 0) & (cells.kind[rows, np.maximum(active, 0)] == Kind.OBSTACLE), axis=1)

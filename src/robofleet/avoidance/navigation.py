@@ -18,6 +18,18 @@ goal and the map.
   grown by ``sight_margin`` (less than ``margin``, so that the edges of a grown polygon
   and segments grazing it count as free). Convex obstacles are tested with the
   parametric clipping of a segment against half-planes (Cyrus & Beck 1978).
+* **Seeing from inside the band** (:func:`exit_points`): a robot that hugs its cell's
+  obstacle face has its estimate inside a sight polygon much of the time, and from
+  there every segment is blocked. Its segments, and a goal's, start at the point where
+  it leaves that polygon through the nearest face. Without this such a robot saw
+  nothing, kept steering to a goal behind the obstacle and slid to and fro along the
+  face (measured: the commonest of the remaining random-scenario failures).
+* **Passages** (:func:`gap_blockers`): a gap between two obstacles narrower than
+  ``1.8 (clearance + passage)``, with ``passage`` a margin for the estimate's noise
+  (``liveness.passage_sigmas`` σ, set by the simulation), leaves the estimate no room to
+  jitter in its cell; a thin wall across it, along the shortest segment between the two
+  obstacles, closes it to every sight line. Elsewhere nodes and sight lines stay where
+  the cells' clearance puts them.
 * **Cost to go** ``D_i(v)``: node-to-node shortest paths (Dijkstra from every node,
   once per workspace) closed with the free segments to each goal, once per run
   (:meth:`Roadmap.costs_to_goals`).
@@ -34,10 +46,12 @@ untouched).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from itertools import combinations
 
 import numpy as np
 from scipy.sparse.csgraph import dijkstra
 from shapely.geometry import Polygon
+from shapely.ops import nearest_points
 
 _EPS = 1e-9
 
@@ -96,6 +110,44 @@ def segments_free(a: np.ndarray, b: np.ndarray, obstacles: Halfplanes) -> np.nda
     return ~np.any(crosses, axis=1)
 
 
+def exit_points(points: np.ndarray, planes: Halfplanes) -> np.ndarray:
+    """Each point moved out of every polygon of ``planes`` that holds it, through that
+    polygon's nearest face, polygon by polygon (points outside them are unchanged)."""
+    out = np.array(points, float)
+    if len(out) == 0:
+        return out
+    for A, b in zip(planes.A, planes.b):
+        slack = out @ A.T - b  # (S, K), all < 0 inside
+        inside = np.all(slack < -1e-9, axis=1)
+        if inside.any():
+            face = np.argmax(slack[inside], axis=1)
+            depth = -slack[inside, face]
+            out[inside] += (depth + 1e-6)[:, None] * A[face]
+    return out
+
+
+def gap_blockers(polygons: list[np.ndarray], width: float, thickness: float = 0.01) -> list[np.ndarray]:
+    """Counter-clockwise thin rectangles across every gap narrower than ``width`` between
+    two of the convex ``polygons``: along the shortest segment between them, reaching a
+    little into both. A path through such a gap crosses that segment, so no sight line
+    passes (O(O²) pairs: maps have few obstacles)."""
+    shapes = [Polygon(p) for p in polygons]
+    out = []
+    for i, j in combinations(range(len(shapes)), 2):
+        gap = shapes[i].distance(shapes[j])
+        if not 0.0 < gap < width:
+            continue
+        p, q = (np.asarray(point.coords[0]) for point in nearest_points(shapes[i], shapes[j]))
+        along = (q - p) / gap
+        side = np.array([-along[1], along[0]]) * thickness / 2
+        a, b = p - thickness * along, q + thickness * along
+        out.append(np.array([a - side, b - side, b + side, a + side]))
+    return out
+
+
+_NO_PLANES = Halfplanes(np.zeros((0, 1, 2)), np.zeros((0, 1)))
+
+
 class Roadmap:
     """The visibility roadmap of one workspace (module docstring).
 
@@ -108,14 +160,18 @@ class Roadmap:
     bounds:
         ``(x_min, y_min, x_max, y_max)`` of the workspace.
     clearance:
-        How far robots stay from the obstacles and the walls [m]; segments are tested
-        against the obstacles grown by 0.9 of it.
+        How far the cells keep robots from the obstacles and the walls [m].
+    passage:
+        The margin [m] for the estimate's noise (module docstring, "Passages"): gaps
+        narrower than ``1.8 (clearance + passage)`` are closed to sight lines.
     """
 
-    def __init__(self, polygons: list[np.ndarray], margin: float, bounds: tuple[float, float, float, float], clearance: float):
+    def __init__(self, polygons: list[np.ndarray], margin: float, bounds: tuple[float, float, float, float], clearance: float,
+                 passage: float = 0.0):
         grown = grown_polygons(polygons, margin)
-        self.grown_planes = halfplanes(grown) if grown else Halfplanes(np.zeros((0, 1, 2)), np.zeros((0, 1)))
-        self.sight = halfplanes(grown_polygons(polygons, 0.9 * clearance)) if polygons else Halfplanes(np.zeros((0, 1, 2)), np.zeros((0, 1)))
+        self.grown_planes = halfplanes(grown) if grown else _NO_PLANES
+        sight = grown_polygons(polygons, 0.9 * clearance) + gap_blockers(polygons, 1.8 * (clearance + passage))
+        self.sight = halfplanes(sight) if polygons else _NO_PLANES
         nodes = np.concatenate(grown) if grown else np.zeros((0, 2))
         lo, hi = np.asarray(bounds[:2]) + clearance, np.asarray(bounds[2:]) - clearance
         self.lower, self.upper = lo, hi
@@ -142,12 +198,14 @@ class Roadmap:
         np.fill_diagonal(graph, 0.0)
         return dijkstra(graph, directed=False)
 
-    def _visibility(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
-        """``(len(a), len(b))`` lengths of free segments, ``inf`` where blocked."""
+    def _visibility(self, a: np.ndarray, b: np.ndarray, seen_b: np.ndarray | None = None) -> np.ndarray:
+        """``(len(a), len(b))`` lengths of free segments, ``inf`` where blocked; the
+        segments are tested to ``seen_b`` (default ``b``)."""
         if len(a) == 0 or len(b) == 0:
             return np.full((len(a), len(b)), np.inf)
+        seen_b = b if seen_b is None else seen_b
         ia, ib = np.repeat(np.arange(len(a)), len(b)), np.tile(np.arange(len(b)), len(a))
-        free = segments_free(a[ia], b[ib], self.sight)
+        free = segments_free(a[ia], seen_b[ib], self.sight)
         length = np.linalg.norm(a[ia] - b[ib], axis=1)
         return np.where(free, length, np.inf).reshape(len(a), len(b))
 
@@ -158,18 +216,20 @@ class Roadmap:
         node, computed once for all goals)."""
         if len(self.nodes) == 0:
             return np.full((len(goals), 0), np.inf)
-        to_goal = self._visibility(self.nodes, goals)  # (V, N)
+        to_goal = self._visibility(self.nodes, goals, exit_points(goals, self.sight))  # (V, N)
         return np.min(self.node_paths[:, :, None] + to_goal[None, :, :], axis=1).T
     def subgoals(self, estimates: np.ndarray, goals: np.ndarray, costs: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Each robot's sub-goal ``(N, 2)`` — the visible node or goal minimising
         ``‖p̂ − v‖ + D_i(v)`` (module docstring) —, the path length ``D_i`` left after it
-        (0 for the goal) and whether anything was visible at all."""
+        (0 for the goal) and whether anything was visible at all. Segments start and end
+        where the estimate and the goal leave the sight polygons (:func:`exit_points`)."""
         n, n_nodes = len(estimates), len(self.nodes)
-        goal_free = segments_free(estimates, goals, self.sight)
+        seen_from = exit_points(estimates, self.sight)
+        goal_free = segments_free(seen_from, exit_points(goals, self.sight), self.sight)
         if n_nodes == 0:
             return goals.copy(), np.zeros(n), np.ones(n, bool)
         ia = np.repeat(np.arange(n), n_nodes)
-        free = segments_free(estimates[ia], np.tile(self.nodes, (n, 1)), self.sight).reshape(n, n_nodes)
+        free = segments_free(seen_from[ia], np.tile(self.nodes, (n, 1)), self.sight).reshape(n, n_nodes)
         total = np.where(free, np.linalg.norm(estimates[:, None] - self.nodes[None], axis=2) + costs, np.inf)
         best = np.argmin(total, axis=1)
         found = np.isfinite(total[np.arange(n), best])

@@ -503,7 +503,7 @@ class World:
         In 3-D the ε-shadow of a box is ``√(χ²₃⁻¹(1 − ε)) σ_o`` (appendix A, Lemma 1)."""
         if self.cell_model is None or (self.dim == 3 and team.flying):
             return None
-        sigma = team.largest_sigma() if self.setup.chance_constrained else 0.0
+        sigma = self.team_sigma(team)
         radius = self.setup.cell_radius(self.spec.robots.radius, team.largest_sigma())
         if self.dim == 3:
             sigma_o = self.spec.space3d.obstacle_sigma if self.setup.chance_constrained else 0.0
@@ -531,13 +531,23 @@ class World:
 
     def navigation(self, team: TeamSpec, goals: np.ndarray) -> Navigation | None:
         """The roadmap sub-goals of a 2-D or ground team (:mod:`.navigation`) when liveness
-        asks for them and there are obstacles: nodes at 1.15 × the team's obstacle clearance."""
+        asks for them and there are obstacles: nodes at 1.15 × the team's obstacle clearance;
+        gaps narrower than 1.8 × (that clearance + ``passage_sigmas`` of its largest σ)
+        closed, the gaps a robot can enter but not pass (measured, one robot through a gap
+        between two boxes at the random scenarios' σ = 0.1 m and clearance 0.61 m, seeds
+        0–9: 0/10 at 1.2 m wide without the margin; with it the roadmap goes round, 10/10)."""
         clearance = self.obstacle_clearance(team)
         polygons, bounds = self.plane_obstacles()
         if clearance is None or not polygons or not (self.liveness.enabled and self.liveness.roadmap):
             return None
-        roadmap = Roadmap(polygons, 1.15 * clearance, bounds, clearance)
+        passage = self.liveness.passage_sigmas * self.team_sigma(team)
+        roadmap = Roadmap(polygons, 1.15 * clearance, bounds, clearance, passage)
         return Navigation(roadmap, goals[:, :2], self.detours(team, roadmap, goals[:, :2]))
+
+    def team_sigma(self, team: TeamSpec) -> float:
+        """The largest standard deviation of a team's position estimate the cells account
+        for (0 for the deterministic methods)."""
+        return team.largest_sigma() if self.setup.chance_constrained else 0.0
 
     def detours(self, team: TeamSpec, roadmap: Roadmap, goals: np.ndarray) -> Detours | None:
         """The detour rule of :mod:`.detour` (when liveness asks for it), its discs the
@@ -547,7 +557,7 @@ class World:
         to 16/20 (``benchmarks/mpc_3d.py``, seeds 0–19), without changing σ × 1 or × 2."""
         if not self.liveness.detour or team.model.kind == "unicycle":
             return None
-        sigma = team.largest_sigma() if self.setup.chance_constrained else 0.0
+        sigma = self.team_sigma(team)
         pair = 2.0 * (self.setup.cell_radius(self.spec.robots.radius, sigma) + self.setup.quantile * sigma)
         params = DetourParams(still_radius=self.liveness.still_radius, still_steps=self.liveness.still_steps,
                               detour_steps=self.liveness.detour_steps)

@@ -367,8 +367,9 @@ class DeadlockSpec(SpecModel):
 
 class LivenessSpec(SpecModel):
     """The liveness rules of :mod:`robofleet.avoidance.liveness` for 2-D teams: roadmap
-    sub-goals around the obstacles, the right-hand turn (not for unicycles) and arrived
-    robots that yield. On by default; ``enabled: false`` gives the paper's controller
+    sub-goals around the obstacles, the right-hand turn (not for unicycles), arrived
+    robots that yield and detours around robots that hold still. On by default;
+    ``enabled: false`` gives the paper's controller
     (appendix C alone, arrived robots hold)."""
 
     enabled: bool = True
@@ -387,6 +388,7 @@ class LivenessSpec(SpecModel):
     face_near: float = Field(0.5, ge=0)
     detour: bool = True
     detour_steps: int = Field(300, ge=1)
+    passage_sigmas: float = Field(1.5, ge=0)
 
 
 # ---------------------------------------------------------------------------------------
