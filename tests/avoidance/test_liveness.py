@@ -6,9 +6,11 @@ import pytest
 
 import robofleet
 from robofleet.avoidance import CellGeometry, ObstacleSet, build_cells, wall_planes
+from robofleet.avoidance.cell import Cells, Kind
 from robofleet.avoidance.controller import (
     ControllerState,
     DeadlockParams,
+    _out_of_the_band,
     single_integrator_control,
 )
 from robofleet.avoidance.liveness import (
@@ -19,6 +21,7 @@ from robofleet.avoidance.liveness import (
     ParkingState,
     parking_targets,
 )
+from robofleet.avoidance.projection import project_onto_cells
 
 BOUNDS = np.array([[-5, -5], [5, -5], [5, 5], [-5, 5.0]])
 
@@ -162,3 +165,20 @@ def test_random_scenario_is_reproducible_and_uses_the_shipped_budget_rule(seed):
         shape = Polygon(p)
         assert shape.is_valid and abs(shape.convex_hull.area - shape.area) < 1e-9 and np.all(np.abs(p) < 5.0)
     assert spec.max_steps == straight_line_budget(spec)
+
+
+def band_cells() -> Cells:
+    """One robot's cell: x ≤ 0 (an obstacle's face) and y ≤ 1 (a neighbour's)."""
+    A = np.array([[[1.0, 0.0], [0.0, 1.0]]])
+    return Cells(A, np.array([[0.0, 1.0]]), np.ones((1, 2), bool), np.array([[Kind.OBSTACLE, Kind.ROBOT]]), np.zeros((1, 2), np.int64))
+
+
+@pytest.mark.parametrize("beyond, back", [(0.3, True), (0.1, False)])
+def test_an_estimate_deep_beyond_an_obstacle_face_steers_back_into_the_cell(beyond, back):
+    """0.3 m beyond the face (depth 0.2 m): the target is the cell's nearest point, not the
+    projected goal; 0.1 m beyond it the projected goal stays."""
+    cells, estimate, goal = band_cells(), np.array([[beyond, 0.5]]), np.array([[0.0, 3.0]])
+    proj = project_onto_cells(goal, cells)
+    out = _out_of_the_band(estimate, proj, cells, 0.2)
+    np.testing.assert_allclose(out.point, [[0.0, 0.5]] if back else proj.point)
+    np.testing.assert_array_equal(out.active, proj.active)

@@ -81,6 +81,9 @@ class LivenessParams:
     passage_sigmas: the roadmap closes gaps between obstacles narrower than
         1.8 × (the cells' clearance + this many σ of the position estimate), which a
         jittering estimate cannot pass (:mod:`.navigation`).
+    band_sigmas: a single integrator whose estimate lies more than this many σ beyond an
+        obstacle face of its cell steers back into the cell first
+        (:func:`~robofleet.avoidance.controller.single_integrator_control`).
     """
 
     enabled: bool = False
@@ -100,6 +103,7 @@ class LivenessParams:
     detour: bool = True
     detour_steps: int = 300
     passage_sigmas: float = 1.5
+    band_sigmas: float = 2.0
 
 
 @dataclass

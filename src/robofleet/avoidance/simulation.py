@@ -371,6 +371,7 @@ class Group:
     grown: np.ndarray | None = field(default=None, repr=False)
     navigation: Navigation | None = field(default=None, repr=False)
     parking: ParkingState | None = field(default=None, repr=False)
+    sigma: float = 0.0  # largest σ of the team's estimates that the cells account for
 
     @property
     def plane_dim(self) -> int:
@@ -482,6 +483,7 @@ class World:
                        for team, sl in zip(teams, slices)]
         for team, sl, g in zip(teams, slices, self.groups):
             g.navigation = self.navigation(team, self.goals[sl])
+            g.sigma = self.team_sigma(team)
             if g.si_state is None:  # single integrators keep theirs in the controller state
                 g.parking = ParkingState.initial(team.n)
         self.noise_factor = self.position_noise_factor(teams, slices)
@@ -671,7 +673,8 @@ class World:
         if g.si_state is not None:
             u, info = single_integrator_control(p_est, goal, cells, g.si_state, v_max=g.v_max, dt=dt, goal_tolerance=spec.goal_tolerance,
                                                 deadlock=self.deadlock, grown_obstacles=g.grown,
-                                                liveness=self.liveness, local_box=spec.local_box, navigation=g.navigation)
+                                                liveness=self.liveness, local_box=spec.local_box, navigation=g.navigation,
+                                                sigma=g.sigma)
             return u, info["empty"]
         g.arrived |= np.linalg.norm(goal - p_est, axis=1) <= spec.goal_tolerance
         state_est = g.state.copy()

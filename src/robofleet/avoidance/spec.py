@@ -389,6 +389,7 @@ class LivenessSpec(SpecModel):
     detour: bool = True
     detour_steps: int = Field(300, ge=1)
     passage_sigmas: float = Field(1.5, ge=0)
+    band_sigmas: float = Field(2.0, ge=0)
 
 
 # ---------------------------------------------------------------------------------------
