@@ -43,7 +43,7 @@ from scipy.spatial import cKDTree
 from shapely.geometry import Point
 
 from . import navigation
-from .liveness import StillTracker
+from .liveness import LivenessParams, StillTracker
 from .navigation import Halfplanes, halfplanes, segments_free
 
 _EPS = 1e-9
@@ -51,12 +51,11 @@ _EPS = 1e-9
 
 @dataclass(frozen=True)
 class DetourParams:
-    """Thresholds of the detour rule (module docstring)."""
+    """The detour rule's own thresholds (module docstring); the still test and the length
+    of a detour come from :class:`.liveness.LivenessParams` (``still_radius``,
+    ``still_steps``, ``detour_steps``), shared with the yielding rule."""
 
-    still_radius: float = 0.4
-    still_steps: int = 50
     block_steps: int = 30
-    detour_steps: int = 300
     node_factor: float = 1.15
     sight_factor: float = 0.9
 
@@ -173,8 +172,10 @@ class Detours:
     (its latch; the still counts are what each robot computes from the estimates it sees,
     identical for all robots that see the same estimates, so one tracker serves all)."""
 
-    def __init__(self, roadmap: navigation.Roadmap, goals: np.ndarray, pair_clearance: float, local_box: float, params: DetourParams):
-        self.roadmap, self.goals, self.radius, self.local_box, self.params = roadmap, goals, pair_clearance, local_box, params
+    def __init__(self, roadmap: navigation.Roadmap, goals: np.ndarray, pair_clearance: float, local_box: float,
+                 rules: LivenessParams, params: DetourParams = DetourParams()):
+        self.roadmap, self.goals, self.radius, self.local_box = roadmap, goals, pair_clearance, local_box
+        self.rules, self.params = rules, params
         self.tracker = StillTracker.initial(len(goals))
         self.left = np.zeros(len(goals), np.int32)
         self.active = np.zeros(len(goals), bool)
@@ -182,11 +183,11 @@ class Detours:
 
     def apply(self, estimates: np.ndarray, arrived: np.ndarray, sub: np.ndarray, to_go: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """This step's sub-goals and path lengths with the detours of the blocked robots."""
-        p = self.params
-        counts = self.tracker.observe(estimates, p.still_radius, p.still_steps)
-        still = counts >= p.still_steps
+        p, rules = self.params, self.rules
+        counts = self.tracker.observe(estimates, rules.still_radius, rules.still_steps)
+        still = counts >= rules.still_steps
         start = ~arrived & (counts >= p.block_steps) & (self.left <= 0) & self._sees_still(estimates, still)
-        self.left[start] = p.detour_steps
+        self.left[start] = rules.detour_steps
         self.left[arrived] = 0
         for i in np.flatnonzero(self.left <= 0):
             self.memory[i] = self.memory[i][:0]

@@ -218,14 +218,17 @@ class Roadmap:
             return np.full((len(goals), 0), np.inf)
         to_goal = self._visibility(self.nodes, goals, exit_points(goals, self.sight))  # (V, N)
         return np.min(self.node_paths[:, :, None] + to_goal[None, :, :], axis=1).T
-    def subgoals(self, estimates: np.ndarray, goals: np.ndarray, costs: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def subgoals(self, estimates: np.ndarray, goals: np.ndarray, costs: np.ndarray,
+                 seen_goals: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Each robot's sub-goal ``(N, 2)`` — the visible node or goal minimising
         ``‖p̂ − v‖ + D_i(v)`` (module docstring) —, the path length ``D_i`` left after it
         (0 for the goal) and whether anything was visible at all. Segments start and end
-        where the estimate and the goal leave the sight polygons (:func:`exit_points`)."""
+        where the estimate and the goal leave the sight polygons (:func:`exit_points`;
+        ``seen_goals``, the goals' exit points, when the caller keeps them)."""
         n, n_nodes = len(estimates), len(self.nodes)
         seen_from = exit_points(estimates, self.sight)
-        goal_free = segments_free(seen_from, exit_points(goals, self.sight), self.sight)
+        seen_goals = exit_points(goals, self.sight) if seen_goals is None else seen_goals
+        goal_free = segments_free(seen_from, seen_goals, self.sight)
         if n_nodes == 0:
             return goals.copy(), np.zeros(n), np.ones(n, bool)
         ia = np.repeat(np.arange(n), n_nodes)
@@ -249,6 +252,7 @@ class Navigation:
     def __init__(self, roadmap: Roadmap, goals: np.ndarray, detours=None):
         self.roadmap, self.goals, self.detours = roadmap, goals, detours
         self.costs = roadmap.costs_to_goals(goals)
+        self.seen_goals = exit_points(goals, roadmap.sight)  # the goals do not move
         self.last = goals.copy(), np.zeros(len(goals))
 
     def step(self, estimates: np.ndarray, arrived: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
@@ -256,7 +260,7 @@ class Navigation:
         inside a grown obstacle) keeps its previous sub-goal. With ``detours``
         (:class:`.detour.Detours`) and ``arrived`` given, blocked robots re-plan around
         the neighbours that hold still."""
-        sub, rest, seen = self.roadmap.subgoals(estimates, self.goals, self.costs)
+        sub, rest, seen = self.roadmap.subgoals(estimates, self.goals, self.costs, self.seen_goals)
         sub, rest = np.where(seen[:, None], sub, self.last[0]), np.where(seen, rest, self.last[1])
         self.last = sub, rest
         to_go = np.linalg.norm(sub - estimates, axis=1) + rest

@@ -64,7 +64,7 @@ from .controller import (
     cell_rows,
     single_integrator_control,
 )
-from .detour import DetourParams, Detours
+from .detour import Detours
 from .diff_drive import three_projection_control
 from .liveness import LivenessParams, ParkingState, steering_goals
 from .metrics import ControllerCounts, RunTally
@@ -561,9 +561,7 @@ class World:
             return None
         sigma = self.team_sigma(team)
         pair = 2.0 * (self.setup.cell_radius(self.spec.robots.radius, sigma) + self.setup.quantile * sigma)
-        params = DetourParams(still_radius=self.liveness.still_radius, still_steps=self.liveness.still_steps,
-                              detour_steps=self.liveness.detour_steps)
-        return Detours(roadmap, goals, pair, self.spec.local_box, params)
+        return Detours(roadmap, goals, pair, self.spec.local_box, self.liveness)
 
     def position_noise_factor(self, teams: tuple[TeamSpec, ...], slices: list[slice]) -> np.ndarray:
         """``L`` with ``L Lᵀ = Σ``: one ``(d, d)`` factor for one team, else ``(N, d, d)``."""
