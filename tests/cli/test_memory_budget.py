@@ -141,7 +141,7 @@ def test_run_size_names_every_field_those_of_the_larger_part_first():
 
 
 # -- every unit the message names is accepted ----------------------------------------------
-def test_every_size_the_message_names_and_every_unit_it_prints_is_accepted():
+def test_every_size_the_message_names_and_every_unit_it_prints_is_accepted(capsys):
     with pytest.raises(ConfigError) as info:
         parse_size("lots")
     named = re.findall(r"\b\d+[A-Za-z]+\b|\b\d{4,}\b", str(info.value).split(", received")[0])
@@ -153,6 +153,8 @@ def test_every_size_the_message_names_and_every_unit_it_prints_is_accepted():
     assert parse_size("1PiB") == MAX_BUDGET and parse_size("1MiB") == MIN_BUDGET
     for nbytes in (MIN_BUDGET, 3 * 2**20, 5 * 2**30, 7 * 2**40, MAX_BUDGET):  # what the messages print reads back
         assert parse_size(format_bytes(nbytes)) == nbytes, format_bytes(nbytes)
+    for text in ("1PiB", "1 pib", "1024tib", "8388608 bytes"):  # the command line takes them too
+        main(["validate", "avoidance/circle_swap", "--memory-budget", text])
     for unit, factor in {"B": 1, "bytes": 1, "kB": 10**3, "KiB": 2**10, "MB": 10**6, "GB": 10**9, "TB": 10**12, "TiB": 2**40,
                          "PB": 10**15, "P": 10**15}.items():
         count = -(-MIN_BUDGET // factor)
