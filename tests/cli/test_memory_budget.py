@@ -6,6 +6,7 @@ variable and ``--memory-budget``."""
 from __future__ import annotations
 
 import os
+import re
 import subprocess
 
 import numpy as np
@@ -15,14 +16,16 @@ import yaml
 import robofleet
 from robofleet.cli.main import main
 from robofleet.core.budget import (
+    MAX_BUDGET,
     MEMORY_BUDGET_VARIABLE,
+    MIN_BUDGET,
     RunSize,
     check_run_size,
     format_bytes,
     memory_budget,
     parse_size,
 )
-from robofleet.core.errors import ConfigError, ScenarioError
+from robofleet.core.errors import ConfigError, RobofleetError, ScenarioError
 from robofleet.core.recorder import Recorder
 from robofleet.scenarios import catalogue, family_of
 
@@ -125,11 +128,111 @@ def test_a_sweep_is_validated_point_by_point_against_the_budget(tmp_path, capsys
     assert capsys.readouterr().out.strip() == f"ok: {sweep} (sweep: 2 grid points × 2 seeds = 4 runs)"
 
 
-def test_run_size_names_the_fields_that_dominate():
+def test_run_size_names_every_field_those_of_the_larger_part_first():
     assert RunSize(10, 2, 8, "max_steps", "robots.n").field == "robots.n, max_steps"
-    grid = RunSize(10, 2, 8, "max_steps", "robots.count", extra_bytes=10**9, extra_what="grid", extra_field="grid.a")
-    assert grid.field == "grid.a" and "grid ≈ 954 MiB" in grid.describe()
-    with pytest.raises(ScenarioError, match=r"^f.yaml: grid.a: expected a run that fits the memory budget"):
+    grid = RunSize(10, 2, 8, "max_steps", "robots.count", extra_bytes=10**9, extra_what="grid", extra_field="grid.a, robots.count")
+    assert grid.field == "grid.a, robots.count, max_steps" and "grid ≈ 954 MiB" in grid.describe()
+    small = RunSize(10**6, 2, 8, "max_steps", "robots.count", extra_bytes=10, extra_field="grid.a", row_fields="record_every")
+    assert small.fields == ("robots.count", "max_steps", "record_every", "grid.a")
+    with pytest.raises(ScenarioError, match=r"^f.yaml: grid.a, robots.count, max_steps: expected a run that fits the memory budget"):
         check_run_size(grid, "f.yaml") if memory_budget() < 10**9 else check_run_size(
-            RunSize(10, 2, 8, extra_bytes=10**13, extra_field="grid.a"), "f.yaml")
+            RunSize(10, 2, 8, "max_steps", "robots.count", extra_bytes=10**13, extra_field="grid.a, robots.count"), "f.yaml")
     assert np.isclose(grid.nbytes, 11 * 2 * 8 + 11 * 8 + 10**9)
+
+
+# -- every unit the message names is accepted ----------------------------------------------
+def test_every_size_the_message_names_and_every_unit_it_prints_is_accepted(capsys):
+    with pytest.raises(ConfigError) as info:
+        parse_size("lots")
+    named = re.findall(r"\b\d+[A-Za-z]+\b|\b\d{4,}\b", str(info.value).split(", received")[0])
+    assert {"4GiB", "512MiB", "2000000000", "1MiB", "1PiB"} <= set(named), named
+    for text in named:
+        number, unit = re.fullmatch(r"(\d+)([A-Za-z]*)", text).groups()
+        for variant in {text, text.lower(), text.upper(), f"{number} {unit}", f" {number}{unit.lower()} "}:
+            assert parse_size(variant) == parse_size(text), variant
+    assert parse_size("1PiB") == MAX_BUDGET and parse_size("1MiB") == MIN_BUDGET
+    for nbytes in (MIN_BUDGET, 3 * 2**20, 5 * 2**30, 7 * 2**40, MAX_BUDGET):  # what the messages print reads back
+        assert parse_size(format_bytes(nbytes)) == nbytes, format_bytes(nbytes)
+    for text in ("1PiB", "1 pib", "1024tib", "8388608 bytes"):  # the command line takes them too
+        main(["validate", "avoidance/circle_swap", "--memory-budget", text])
+    for unit, factor in {"B": 1, "bytes": 1, "kB": 10**3, "KiB": 2**10, "MB": 10**6, "GB": 10**9, "TB": 10**12, "TiB": 2**40,
+                         "PB": 10**15, "P": 10**15}.items():
+        count = -(-MIN_BUDGET // factor)
+        assert parse_size(f"{count}{unit}") == count * factor, unit
+
+
+# -- a refused run names every field that drives its size -----------------------------------
+SIZE_SCENARIOS = [("avoidance/circle_swap", {}), ("avoidance/circle_swap", {"robots.n": 40, "record_cells": True, "local_box": 0.5}),
+                  ("avoidance/heterogeneous", {}), ("avoidance/ten_boxes", {}), ("coordination/x_corridor_5_tff", {}),
+                  ("coordination/fig2_three_robots", {}), ("flocking/wedge_async", {}), ("flocking/random_async", {}),
+                  ("flocking/wedge_fsync_straight", {}), ("search/fig7", {}),
+                  ("search/failure_injection", {})]
+
+
+def scaled(value):
+    """``value`` with every number doubled (0 becomes 1)."""
+    if isinstance(value, list):
+        return [scaled(v) for v in value]
+    if isinstance(value, (int, float)) and not isinstance(value, bool):
+        return type(value)(2 * value or 1)
+    return value
+
+
+def numeric_fields(value, path=""):
+    """``(dotted path, changed value)`` for every number and list of numbers in a dumped spec."""
+    if isinstance(value, dict):
+        for key, item in value.items():
+            yield from numeric_fields(item, f"{path}.{key}" if path else key)
+    elif isinstance(value, list) and value and all(isinstance(v, dict) for v in value):
+        for index, item in enumerate(value):
+            yield from numeric_fields(item, f"{path}.{index}")
+    elif isinstance(value, (int, float, list)) and not isinstance(value, bool) and value != []:
+        yield path, scaled(value)
+
+
+def without_indices(path: str) -> str:
+    return ".".join(part for part in path.split(".") if not part.isdigit())
+
+
+def named_by(path: str, fields) -> bool:
+    """Whether one of ``fields`` is ``path`` or a block holding it (list indices ignored)."""
+    path = without_indices(path)
+    return any(path == f or path.startswith(f + ".") for f in map(without_indices, fields))
+
+
+@pytest.mark.parametrize("name, base", SIZE_SCENARIOS)
+def test_a_refused_run_names_every_field_that_drives_its_size(name, base, monkeypatch):
+    """Double every number of the scenario, one at a time: each change that changes the
+    estimate is of a field the scenario's refusal names."""
+    monkeypatch.setenv(MEMORY_BUDGET_VARIABLE, "1PiB")
+    spec = robofleet.load_scenario(name, base)
+    size, named, changed = spec.run_size().nbytes, spec.run_size().field.split(", "), 0
+    for path, value in numeric_fields(spec.model_dump(mode="json")):
+        try:
+            other = robofleet.load_scenario(name, {**base, path: value})
+        except RobofleetError:
+            continue  # the change makes the scenario invalid
+        if other.run_size().nbytes != size:
+            changed += 1
+            assert named_by(path, named), f"{name}: {path} changes the estimate; named: {named}"
+    assert changed >= 1
+
+
+@pytest.mark.parametrize("name, overrides, named", [
+    ("flocking/wedge_async", {"followers.count": 10**7}, ["followers.count", "duration", "scheduler.cycle_min"]),
+    ("flocking/random_async", {"pattern.n_points": 10**7}, ["pattern.n_points", "duration"]),
+    ("flocking/wedge_async", {"duration": 1e9}, ["duration", "sample_dt", "scheduler.cycle_min"]),
+    ("avoidance/circle_swap", {"deadlock.window": 10**8}, ["deadlock.window", "robots.n", "max_steps"]),
+    ("avoidance/heterogeneous", {"teams.0.n": 10**6}, ["teams.n", "max_steps"]),
+    ("coordination/x_corridor_5_tff", {"robots.count": 10**5}, ["robots.count", "simulation.max_steps", "planner.max_steps"]),
+    ("coordination/x_corridor_5_tff", {"planner.grid_spacing": 1e-4}, ["planner.grid_spacing", "workspace", "robots.count"]),
+    ("search/fig7", {"robots.count": 10**6}, ["robots.count", "max_steps", "grid.a"]),
+    ("search/fig7", {"grid.a": 1e-4}, ["grid.a", "workspace", "robots.count"]),
+])
+def test_the_refusal_names_the_fields_of_each_family(name, overrides, named):
+    with pytest.raises(ScenarioError, match="memory budget of 4 GiB") as info:
+        robofleet.load_scenario(name, overrides)
+    message = str(info.value)
+    assert "\n" not in message
+    listed = info.value.field.split(", ")
+    assert all(field in listed for field in named) and f"{info.value.field}: expected" in message, message

@@ -3,6 +3,8 @@ seed, observations, rewards, terminations, the safety filter's effect, figures, 
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 import pytest
 
@@ -128,3 +130,90 @@ def test_bad_actions_are_refused():
         e.step({"robot_0": [0.1, 0.0], "robot_1": [np.nan, 0.0]})
     with pytest.raises(ConfigError, match=r"^agent: expected one of robot_0..robot_7"):
         e.step({"robot_9": [0.1, 0.0]})
+
+
+@pytest.mark.parametrize("call", ["step", "trace", "render"])
+def test_calls_before_reset_are_one_line_errors(call):
+    e = parallel_env("avoidance/circle_swap", render_mode="rgb_array")
+    method = {"step": lambda: e.step({}), "trace": e.trace, "render": e.render}[call]
+    with pytest.raises(ConfigError, match=rf"^{call}\(\): expected a call to reset\(\) first, received {call}\(\) before any reset\(\)$"):
+        method()
+    e.reset(seed=0)
+    method()
+
+
+def test_a_step_after_the_episode_ended_asks_for_a_reset():
+    e = parallel_env("avoidance/circle_swap", "none", max_steps=2)
+    e.reset(seed=0)
+    while e.agents:
+        e.step({})
+    with pytest.raises(ConfigError, match=r"^step\(\): expected a call to reset\(\) after every agent terminated or was truncated"):
+        e.step({})
+    e.reset()
+    assert e.step({})[3]["robot_0"] is False
+
+
+@pytest.mark.parametrize("rewards, where", [
+    ("x", "rewards"), ({"progress": 1.0}, "rewards"), (None, "rewards"),
+    (lambda: RewardWeights(progress=float("nan")), "rewards.progress"), (lambda: RewardWeights(contact=float("-inf")), "rewards.contact"),
+    (lambda: RewardWeights(arrival=1e300), "rewards.arrival"), (lambda: RewardWeights(progress=True), "rewards.progress"),
+    (lambda: RewardWeights(contact="1"), "rewards.contact"), (lambda: RewardWeights(arrival=1 + 2j), "rewards.arrival"),
+])
+def test_reward_settings_are_one_line_errors(rewards, where):
+    with pytest.raises(ConfigError, match=rf"^{where}: expected .*, received "):
+        parallel_env("avoidance/circle_swap", rewards=rewards() if callable(rewards) else rewards)
+
+
+def test_reward_weights_are_real_numbers():
+    weights = RewardWeights(progress=2, contact=np.float32(-0.5), arrival=np.int64(3))
+    assert (weights.progress, weights.contact, weights.arrival) == (2.0, -0.5, 3.0)
+    assert all(type(w) is float for w in (weights.progress, weights.contact, weights.arrival))
+    with pytest.raises(ConfigError, match=r"^record_cells: expected True or False, received 'yes'$"):
+        parallel_env("avoidance/circle_swap", record_cells="yes")
+
+
+BAD_ACTIONS = [np.array([np.inf, 0.0]), np.array([0.0, -np.inf]), np.array([np.nan, 0.0]), np.array([1 + 1j, 0]), [0.1, 1j],
+               np.array([0.1, 0.2, 0.3]), np.zeros((1, 2)), np.zeros(0), 0.3, None, "ab", ["0.1", "0.2"], [True, False], [True, 0.2],
+               np.array([True, False]), np.array([10**30, 1], dtype=object), [[0.1], [0.2]], {"x": 0.1}]
+
+
+@pytest.mark.parametrize("safety", ["buavc", "none"])
+def test_bad_actions_are_one_line_errors_that_change_nothing(safety):
+    e = parallel_env("avoidance/circle_swap", safety)
+    e.reset(seed=0)
+    positions = e.fleet.positions.copy()
+    for action in BAD_ACTIONS:
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            with pytest.raises(ConfigError) as info:
+                e.step({"robot_0": [0.1, 0.0], "robot_3": action})
+        message = str(info.value)
+        assert message.startswith("actions['robot_3']: expected 2 finite numbers (a real velocity), received ") and "\n" not in message
+    assert e.steps == 0 and np.array_equal(e.fleet.positions, positions)
+
+
+@pytest.mark.parametrize("safety", ["buavc", "none"])
+def test_huge_actions_are_shortened_along_their_direction_without_warnings(safety):
+    """Random directions at magnitudes up to the largest float move every robot exactly as
+    the same direction at v_max does (seeded)."""
+    rng = np.random.default_rng(20)
+    huge, limit = parallel_env("avoidance/circle_swap", safety), parallel_env("avoidance/circle_swap", safety)
+    huge.reset(seed=4)
+    limit.reset(seed=4)
+    v_max = limit.v_max[0]
+    for _ in range(15):
+        angles = rng.uniform(0, 2 * np.pi, len(huge.agents))
+        scales = 10.0 ** rng.uniform(0, 308, len(huge.agents)) * rng.choice([1, 1.7976], len(huge.agents))
+        directions = np.stack([np.cos(angles), np.sin(angles)], axis=1)
+        directions[rng.random(len(directions)) < 0.2, rng.integers(0, 2)] = 0.0  # some along an axis
+        directions /= np.linalg.norm(directions, axis=1, keepdims=True)
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            huge.step({a: directions[i] * min(scales[i], 1.7e308) for i, a in enumerate(huge.agents)})
+            limit.step({a: directions[i] * v_max for i, a in enumerate(limit.agents)})
+        assert np.allclose(huge.fleet.velocity, limit.fleet.velocity, rtol=0, atol=1e-12)
+        assert np.allclose(huge.fleet.positions, limit.fleet.positions, rtol=0, atol=1e-12)
+        speed = np.linalg.norm(huge.fleet.velocity, axis=1)
+        assert np.all(speed <= v_max * (1 + 1e-12))
+        if safety == "none":
+            assert np.allclose(speed, v_max) and np.allclose(huge.fleet.velocity / v_max, directions, atol=1e-12)

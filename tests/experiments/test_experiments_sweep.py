@@ -86,9 +86,35 @@ def test_metrics_keep_only_the_listed_summary_keys(tmp_path, toy_family):
     assert set(frame.columns) == {"run_id", "seed", "noise.sigma", "robots.n", "success", "final_spread", "error"}
 
 
-def test_unknown_metric_becomes_failure_rows(tmp_path, toy_family):
-    frame = run_sweep(write_sweep(tmp_path, metrics=["nope"], seeds=1), executor="serial", progress=False)
-    assert frame["error"].str.contains("nope").all() and len(frame) == 4
+@pytest.mark.parametrize("metrics, named", [(["nope"], "'nope'"), (["success", "nope", "final_spred"], "['nope', 'final_spred']")])
+def test_a_metric_no_summary_has_is_refused_in_one_line_before_anything_runs(tmp_path, toy_family, metrics, named):
+    path = write_sweep(tmp_path, metrics=metrics, seeds=1)
+    with pytest.raises(ScenarioError) as info:
+        run_sweep(path, executor="serial", progress=False)
+    message = str(info.value)
+    assert message.startswith(f"{path}: metrics: expected summary keys of toy runs (family, scenario, seed, success, ")
+    assert "final_spread" in message and message.endswith(f"received {named}") and "\n" not in message
+    assert not (tmp_path / "out").exists()
+
+
+def test_the_cli_refuses_a_sweep_metric_no_summary_has(tmp_path, capsys):
+    from robofleet.cli.main import main
+
+    path = tmp_path / "sweep.yaml"
+    path.write_text(yaml.safe_dump({"scenario": "search/fig7", "seeds": 1, "metrics": ["search_time", "successs"]}))
+    for command in ("validate", "sweep"):
+        with pytest.raises(SystemExit) as info:
+            main([command, str(path)])
+        lines = capsys.readouterr().err.strip().splitlines()
+        assert info.value.code == 2 and len(lines) == 1 and lines[0].startswith(f"error: {path}: metrics: expected summary keys of search runs")
+        assert lines[0].endswith("received 'successs'"), lines
+
+
+def test_a_metric_some_runs_lack_is_empty_in_their_rows(tmp_path):
+    sweep = {"scenario": "flocking/wedge_async", "overrides": {"duration": 3.0}, "seeds": 1, "out": str(tmp_path / "out"),
+             "metrics": ["success", "delta_m_final"]}  # the wedge is lb-symmetric: its runs have no mirror-image keys
+    frame = run_sweep(sweep, executor="serial", progress=False)
+    assert frame["error"].isna().all() and frame["delta_m_final"].isna().all() and len(frame) == 1
 
 
 def test_inline_scenario_and_default_out(tmp_path, toy_family, monkeypatch):

@@ -69,6 +69,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from ..core.config import ScenarioSource, load_spec
 from ..core.errors import ConfigError, short_repr
 from ..core.spec_blocks import is_convex
 from .cell import CellGeometry, Cells, cell_from_view
@@ -328,12 +329,13 @@ class SafetyFilter:
         return cls._with_memory(model, per_robot_positive(v_max, "v_max", n), positive(dt, "dt"), deadlock)
 
     @classmethod
-    def from_spec(cls, spec: Spec, deadlock: DeadlockParams | None = None) -> SafetyFilter:
+    def from_spec(cls, spec: ScenarioSource, deadlock: DeadlockParams | None = None) -> SafetyFilter:
         """The filter of an avoidance scenario's robots: its r_s, v_max per team, δ,
         Δt, R_loc, walls and obstacles with their ε-shadows (always as B-UAVC, whatever the
         scenario's ``method``). The scenario's Σ are the default covariances
-        (:meth:`covariances`), but every call passes its own."""
-        spec = single_integrator_spec(spec)
+        (:meth:`covariances`), but every call passes its own. ``spec``: a shipped name, a
+        YAML file, a mapping or a validated spec (:func:`~robofleet.core.config.load_spec`)."""
+        spec = single_integrator_spec(load_spec(spec, Spec, argument="spec"))
         model = cell_model(spec, method_setup("buavc", spec.delta, 0.0))
         v_max = np.concatenate([np.full(t.n, t.v_max) for t in spec.team_specs()])
         return cls._with_memory(model, v_max, float(spec.dt), deadlock)
@@ -434,8 +436,9 @@ class RobotSafetyFilter:
                    cell_geometry(bounds, obstacles, obstacle_cov, delta), positive(local_box, "local_box"), memory)
 
     @classmethod
-    def from_spec(cls, spec: Spec, robot: int = 0, deadlock: DeadlockParams | None = DEFAULT_DEADLOCK) -> RobotSafetyFilter:
-        """Robot ``robot``'s filter in an avoidance scenario (its team's v_max)."""
+    def from_spec(cls, spec: ScenarioSource, robot: int = 0, deadlock: DeadlockParams | None = DEFAULT_DEADLOCK) -> RobotSafetyFilter:
+        """Robot ``robot``'s filter in an avoidance scenario (its team's v_max; ``spec`` as
+        in :meth:`SafetyFilter.from_spec`)."""
         fleet = SafetyFilter.from_spec(spec)
         if isinstance(robot, bool) or not isinstance(robot, (int, np.integer)) or not 0 <= robot < fleet.n:
             raise ConfigError(f"robot: expected an index in 0..{fleet.n - 1}, received {short_repr(robot)}")

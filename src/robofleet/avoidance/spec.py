@@ -474,18 +474,25 @@ class Spec(RecordingSpec):
         n = sum(team.n for team in self.teams) if self.teams else self.robots.n
         d = self.dim
         per_robot = 8 * (2 * d + 4 + 1) + 3
+        row_fields = ["record_every"]
         cells = self.record_cells if self.record_cells is not None else n <= 64
         if d == 2 and self.method != "orca" and cells:
             packed = 2 * math.ceil((self.local_box / self.robots.radius + 1) ** 2)
             rows = min(n - 1, packed) + len(self.workspace.obstacles) + len(self.workspace.bounds_vertices())
             per_robot += 2 * 8 * rows * (d + 1)
+            row_fields += ["record_cells", "workspace"] + (["local_box", "robots.radius"] if packed < n - 1 else [])
         teams = self.team_specs() if not self.teams else self.teams
-        window = max([self.deadlock.window] + [t.model.mpc.deadlock_steps for t in teams if t.model.controller == "mpc"])
-        mpc = sum(t.n * t.model.mpc.horizon * (t.model.mpc.max_constraints + MPC_STAGE_ROWS) for t in teams if t.model.controller == "mpc")
+        mpc_teams = [(k, t) for k, t in enumerate(teams) if t.model.controller == "mpc"]
+        window = max([self.deadlock.window] + [t.model.mpc.deadlock_steps for _, t in mpc_teams])
+        mpc = sum(t.n * t.model.mpc.horizon * (t.model.mpc.max_constraints + MPC_STAGE_ROWS) for _, t in mpc_teams)
         extra = 8 * (2 + d) * window * n + MPC_ROW_BYTES * mpc
-        return RunSize(self.max_steps, n, per_robot, "max_steps", "teams.n" if self.teams else "robots.n", extra,
-                       "deadlock windows and MPC problems", "deadlock.window, model.mpc.horizon, model.mpc.max_constraints",
-                       record_every=self.record_every)
+        robots_field = "teams.n" if self.teams else "robots.n"
+        extra_fields = ["deadlock.window", robots_field]
+        for k, _ in mpc_teams:
+            model = f"teams.{k}.model" if self.teams else "model"
+            extra_fields += [f"{model}.mpc.{name}" for name in ("horizon", "max_constraints", "deadlock_steps")]
+        return RunSize(self.max_steps, n, per_robot, "max_steps", robots_field, extra, "deadlock windows and MPC problems",
+                       ", ".join(extra_fields), record_every=self.record_every, row_fields=", ".join(row_fields))
 
 
 # ---------------------------------------------------------------------------------------

@@ -228,7 +228,7 @@ class Spec(SpecModel):
         plan = 2 * 16 * n * (self.planner.max_steps + 1)
         return RunSize(self.simulation.max_steps, n, 16 + 8 + 2, "simulation.max_steps", robots_field,
                        int(16 * nodes + ROADMAP_EDGE_BYTES * edges + plan), "roadmap and plan",
-                       "planner.grid_spacing, planner.connection_radius, planner.max_steps")
+                       f"planner.grid_spacing, planner.connection_radius, workspace, planner.max_steps, {robots_field}")
 
     def build_workspace(self) -> Workspace:
         """The scenario's workspace with its disturbance regions (``probability`` attributes)."""

@@ -57,6 +57,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..core.config import ScenarioSource, load_spec
 from ..core.errors import ConfigError, short_repr
 from ..core.rng import resolve_seed
 from .coordination_space import CoordinationSpace, build_coordination_space
@@ -148,11 +149,12 @@ class Supervisor:
         return cls(load_trajectories(path, radius, dt), **options)
 
     @classmethod
-    def from_scenario(cls, spec: Spec, seed: int = 0, **options) -> Supervisor:
+    def from_scenario(cls, spec: ScenarioSource, seed: int = 0, **options) -> Supervisor:
         """The plan, flip policy and disturbance probabilities a coordination scenario's run
-        ``seed`` executes (the same instance and executor as ``simulate(spec, seed)``)."""
-        if not isinstance(spec, Spec):
-            raise ConfigError(f"spec: expected a coordination scenario (load it with robofleet.load_scenario), received {type(spec).__name__}")
+        ``seed`` executes (the same instance and executor as ``simulate(spec, seed)``).
+        ``spec``: a shipped name, a YAML file, a mapping or a validated spec
+        (:func:`~robofleet.core.config.load_spec`)."""
+        spec = load_spec(spec, Spec, argument="spec")
         seed = resolve_seed(seed)
         workspace = spec.build_workspace()
         instance = prepare_instance(spec, seed, workspace)

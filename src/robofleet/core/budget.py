@@ -26,16 +26,20 @@ from .errors import ConfigError, Described, ScenarioError, short_repr
 DEFAULT_MEMORY_BUDGET = 4 * 2**30
 MEMORY_BUDGET_VARIABLE = "ROBOFLEET_MEMORY_BUDGET"
 HOW_TO_RAISE = f"{MEMORY_BUDGET_VARIABLE} or --memory-budget"
-UNITS = {"": 1, "b": 1, "k": 10**3, "kb": 10**3, "kib": 2**10, "m": 10**6, "mb": 10**6, "mib": 2**20,
-         "g": 10**9, "gb": 10**9, "gib": 2**30, "t": 10**12, "tb": 10**12, "tib": 2**40}
-SIZE_PATTERN = re.compile(r"\s*([0-9]+(?:\.[0-9]*)?(?:e[0-9]+)?)\s*([a-z]*)\s*", re.IGNORECASE)
+UNITS = {"": 1, "b": 1, "byte": 1, "bytes": 1,
+         **{prefix: 10 ** (3 * power) for power, prefix in enumerate("kmgtp", 1)},
+         **{f"{prefix}b": 10 ** (3 * power) for power, prefix in enumerate("kmgtp", 1)},
+         **{f"{prefix}ib": 2 ** (10 * power) for power, prefix in enumerate("kmgtp", 1)}}
+"""Units of a size, in any letter case: bytes (none, ``B``, ``bytes``), decimal (``k``,
+``kB`` … ``P``, ``PB``) and binary (``KiB`` … ``PiB``) multiples, up to the largest budget."""
+SIZE_PATTERN = re.compile(r"\s*((?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:e[+-]?[0-9]+)?)\s*([a-z]*)\s*", re.IGNORECASE)
 MIN_BUDGET = 2**20
 MAX_BUDGET = 2**50
 FLOAT_BYTES = 8
 
 
 def parse_size(text: str | int, where: str = MEMORY_BUDGET_VARIABLE) -> int:
-    """Bytes of a size such as ``4GiB``, ``512 MB``, ``2e9`` or an integer.
+    """Bytes of a size such as ``4GiB``, ``512 MB``, ``2e9`` or an integer (units: :data:`UNITS`).
 
     Raises
     ------
@@ -104,12 +108,17 @@ class RunSize:
     steps: the step budget (recorded state arrays have ``steps + 1`` rows).
     robots: the number of robots.
     bytes_per_robot_step: bytes recorded per robot and step (all arrays together).
-    steps_field, robots_field: the scenario fields that set them (named in the error).
+    steps_field, robots_field: the scenario fields that set them.
     extra_bytes: other memory the run holds throughout (a plan, a grid, logs), if known.
     extra_what: what ``extra_bytes`` is, for the message.
-    extra_field: the scenario field that sets ``extra_bytes`` (named when it dominates).
+    extra_field: the scenario fields that set ``extra_bytes``, the robots' and steps' too
+        if they scale it.
     record_every: only the states and per-step rows of every ``record_every``-th step are
         kept (:func:`recorded_rows`); the per-step compute times are kept for every step.
+    row_fields: the scenario fields that set ``bytes_per_robot_step`` or ``record_every``.
+
+    Each ``*_field`` may name several fields, separated by commas; :attr:`fields` names
+    them all, and a refusal names every one (:func:`check_run_size`).
     """
 
     steps: int
@@ -121,6 +130,7 @@ class RunSize:
     extra_what: str = ""
     extra_field: str = ""
     record_every: int = 1
+    row_fields: str = ""
 
     @property
     def recorded_bytes(self) -> int:
@@ -133,11 +143,18 @@ class RunSize:
         return self.recorded_bytes + self.extra_bytes
 
     @property
+    def fields(self) -> tuple[str, ...]:
+        """Every scenario field that drives the estimate, each once: those of the larger
+        part (recorded arrays, or the extra) first, the extra's only if there is one."""
+        recorded = split_fields(self.robots_field, self.steps_field, self.row_fields)
+        extra = split_fields(self.extra_field) if self.extra_bytes else ()
+        ordered = extra + recorded if self.extra_bytes > self.recorded_bytes else recorded + extra
+        return tuple(dict.fromkeys(ordered))
+
+    @property
     def field(self) -> str:
-        """The fields to change: the extra's when it dominates, else the robots' and steps'."""
-        if self.extra_field and self.extra_bytes > self.recorded_bytes:
-            return self.extra_field
-        return f"{self.robots_field}, {self.steps_field}"
+        """:attr:`fields` as one comma-separated string (the field an error names)."""
+        return ", ".join(self.fields)
 
     def describe(self) -> Described:
         """``8 robots × 500 steps ≈ 2.3 MiB, roadmap and plan ≈ 17 MiB``."""
@@ -148,15 +165,22 @@ class RunSize:
         return Described(text)
 
 
+def split_fields(*texts: str) -> tuple[str, ...]:
+    """The field names in comma-separated ``texts``, in order."""
+    return tuple(name.strip() for text in texts for name in text.split(",") if name.strip())
+
+
 def check_run_size(size: RunSize | None, source: str | None = None) -> None:
-    """Refuse a run whose estimate exceeds the budget (one line naming the robot count,
-    the step budget, the estimate and how to raise the budget)."""
+    """Refuse a run whose estimate exceeds the budget: one line naming every field that
+    drives the estimate (:attr:`RunSize.fields`), the robot count, the step budget, the
+    estimate and how to raise the budget."""
     if size is None:
         return
     budget = memory_budget()
     if size.nbytes > budget:
+        which = "this field" if len(size.fields) == 1 else "these fields"
         raise ScenarioError(size.field, f"a run that fits the memory budget of {format_bytes(budget)} "
-                            f"(change {size.field}, or raise it with {HOW_TO_RAISE})", size.describe(), source=source)
+                            f"(change {which}, or raise it with {HOW_TO_RAISE})", size.describe(), source=source)
 
 
 def check_allocation(nbytes: int, what: str, field: str, source: str | None = None) -> None:

@@ -1,6 +1,8 @@
 """Config objects shared by every layer: the strict pydantic base :class:`SpecModel`,
-YAML reading, and the translation of validation failures into one-line
-:class:`~robofleet.core.errors.ScenarioError` s.
+YAML reading, the translation of validation failures into one-line
+:class:`~robofleet.core.errors.ScenarioError` s, and the one way to turn a scenario
+source (a shipped name, a file, a mapping or a spec) into a validated spec
+(:func:`load_spec`; :func:`robofleet.load_scenario` is the same for any family).
 
 Dynamics, algorithms and scenario specs all build their parameter objects on
 :class:`SpecModel` (frozen, keyword-only, unknown keys are errors), so nothing below the
@@ -20,8 +22,9 @@ import yaml
 from pydantic import BaseModel, ConfigDict, PrivateAttr, ValidationError, model_validator
 from pydantic.fields import FieldInfo
 
+from . import catalogue
 from .budget import RunSize, check_run_size
-from .errors import Described, RobofleetError, ScenarioError, short_repr
+from .errors import ConfigError, Described, RobofleetError, ScenarioError, short_repr
 
 _Model = TypeVar("_Model", bound=BaseModel)
 
@@ -290,3 +293,111 @@ def as_array(value: Any, shape_tail: tuple[int, ...], field: str) -> np.ndarray:
     if not np.all(np.isfinite(arr)):
         raise ScenarioError(field, "finite numbers", value)
     return arr
+
+
+# ---------------------------------------------------------------------------------------
+# scenario sources
+# ---------------------------------------------------------------------------------------
+ScenarioSource = str | Path | Mapping[str, Any] | SpecModel
+"""What every function and object built from a scenario accepts: a shipped scenario name
+(``"avoidance/circle_swap"``), a YAML file, a mapping with a file's keys, or a validated spec."""
+
+DEFAULT_FAMILY = "avoidance"
+"""The family of a scenario file or mapping without a ``family:`` key."""
+
+SOURCE_KINDS = "a shipped scenario name, a YAML file, a mapping or a validated spec"
+
+
+def read_scenario(ref: str | Path | Mapping[str, Any], argument: str = "scenario") -> tuple[dict, str | None]:
+    """``(mapping, source)`` of a scenario file, shipped name or mapping (a file that
+    exists wins over a shipped name, :func:`~.catalogue.resolve`).
+
+    Raises
+    ------
+    ConfigError
+        Naming ``argument`` when ``ref`` is none of those kinds (a number, ``None``, a blank string).
+    ScenarioError
+        Naming the file when it cannot be read (or no shipped scenario has that name).
+    """
+    if isinstance(ref, Mapping):
+        return read_mapping(ref)
+    if not isinstance(ref, (str, Path)) or (isinstance(ref, str) and not ref.strip()):
+        raise ConfigError(f"{argument}: expected {SOURCE_KINDS}, received {type(ref).__name__} {short_repr(ref)}")
+    return read_mapping(catalogue.resolve(ref))
+
+
+def scenario_data(ref: str | Path | Mapping[str, Any], overrides: Mapping[str, Any] | None = None,
+                  argument: str = "scenario") -> tuple[dict, str | None]:
+    """:func:`read_scenario` with ``{"dotted.field": value}`` overrides applied."""
+    data, source = read_scenario(ref, argument)
+    if overrides is not None and not isinstance(overrides, Mapping):
+        raise ConfigError(f"overrides: expected a mapping {{'dotted.field': value}}, received {type(overrides).__name__} {short_repr(overrides)}")
+    for key, value in (overrides or {}).items():
+        if not isinstance(key, str) or not key or any(not part for part in key.split(".")):
+            raise ConfigError(f"overrides: expected dotted field paths such as 'robots.radius' as keys, received {short_repr(key)}")
+        try:
+            set_path(data, key, value)
+        except ScenarioError as exc:
+            raise ScenarioError(f"overrides {key}: {exc.field}" if exc.field else f"overrides {key}", exc.expected, exc.received, source=source) from None
+    return data, source
+
+
+def spec_from_data(model: type[_Model], data: Mapping[str, Any], source: str | None) -> _Model:
+    """``data`` validated by ``model``, remembering its file, checked against the memory budget."""
+    spec = validate_model(model, data, source)
+    spec._source = source
+    check_run_size(spec.run_size(), source)
+    return spec
+
+
+def family_name(model: type[SpecModel]) -> str:
+    """The family a scenario model belongs to (its ``family`` field's value, by the family contract)."""
+    return str(model.model_fields["family"].default)
+
+
+def a_scenario_of(family: str) -> str:
+    """``"an avoidance scenario"``, ``"a search scenario"``."""
+    return f"{'an' if family[:1] in tuple('aeiou') else 'a'} {family} scenario"
+
+
+def given_spec(spec: SpecModel, model: type[_Model], overrides: Mapping[str, Any] | None, argument: str) -> _Model:
+    """A spec passed as a scenario source: itself, if it is a ``model`` and no overrides are asked for."""
+    if not isinstance(spec, model):
+        family = getattr(spec, "family", None)
+        received = f"a {family} scenario spec" if isinstance(family, str) else f"a {type(spec).__name__} (not a whole scenario)"
+        raise ConfigError(f"{argument}: expected {a_scenario_of(family_name(model))} ({SOURCE_KINDS}), received {received}")
+    if overrides is not None:
+        raise ConfigError(f"overrides: expected None for a validated spec (apply overrides to its file, name or mapping), "
+                          f"received {short_repr(overrides)}")
+    return spec
+
+
+def load_spec(source: ScenarioSource, model: type[_Model], overrides: Mapping[str, Any] | None = None, *,
+              argument: str = "scenario") -> _Model:
+    """One family's validated scenario from any scenario source: the one way every object
+    built from a scenario (the safety filter, the environments, the supervisor) reads it.
+
+    Parameters
+    ----------
+    source: a shipped scenario name, a YAML file, a mapping with a file's keys, or a
+        validated ``model`` (returned as it is).
+    model: the family's ``Spec``.
+    overrides: optional ``{"dotted.field": value}`` applied before validation (not with a spec).
+    argument: the caller's parameter name, for the messages.
+
+    Raises
+    ------
+    ConfigError
+        One line naming ``argument``: a source of no accepted kind, or a scenario of another family.
+    ScenarioError
+        One line naming the file and field: an unreadable file or an invalid field.
+    """
+    if isinstance(source, SpecModel):
+        return given_spec(source, model, overrides, argument)
+    data, file = scenario_data(source, overrides, argument)
+    wanted, found = family_name(model), data.get("family", DEFAULT_FAMILY)
+    if found != wanted:
+        where = file if file is not None else "a mapping"
+        family = f"of family {short_repr(found)}" if "family" in data else f"without a family: key (so of family {DEFAULT_FAMILY!r})"
+        raise ConfigError(f"{argument}: expected {a_scenario_of(wanted)} ({SOURCE_KINDS}), received {where} {family}")
+    return spec_from_data(model, data, file)

@@ -10,8 +10,12 @@ Observation (``Box``, float32, ``6 + 3K`` values; ``K = max_neighbours``)
     in the ∞-norm inside the local box ``R_loc`` (the robots a B-UAVC sees), zeros where
     fewer are there. Estimates are noisy (``N(0, Σ)``, the scenario's σ) as in the family.
 Action (``Box [−v_max, v_max]²``, float32)
-    the desired velocity [m/s]; the robot moves at most ``v_max`` (longer vectors are
-    shortened along their direction), through the safety filter when it is on.
+    the desired velocity [m/s]: two finite real numbers (any float or integer dtype). The
+    robot moves at most ``v_max``: a longer vector, however large (``1e300``), is shortened
+    along its direction (:func:`~robofleet.envs.fleet.limited`), then passes through the
+    safety filter when it is on. NaN, ±inf, complex, boolean or text values and any shape
+    but ``(2,)`` are refused with a one-line :class:`~robofleet.core.errors.ConfigError`
+    naming the agent.
 Reward per agent and step (weights in :class:`RewardWeights`)
     ``progress × (d_before − d_after)`` (TRUE distance to the goal, metres) ``+ contact ×
     (contacts this step)`` ``+ arrival`` on the step the robot arrives.
@@ -23,6 +27,10 @@ Termination / truncation per agent
 Info per agent
     ``contacts`` this step, ``filtered`` (the filter changed its velocity), and with the
     filter ``estimate_in_cell`` and ``empty_cell`` (the premise of the B-UAVC bound).
+Calls
+    ``step()``, ``trace()`` and ``render()`` need a ``reset()`` first, and ``step()`` after
+    every agent has terminated or been truncated needs another ``reset()``; otherwise a
+    one-line :class:`~robofleet.core.errors.ConfigError` says so.
 Seeds
     ``reset(seed=s)`` seeds one generator from which the layout (random layouts) and all
     noise of the episode are drawn: the same seed and actions give identical episodes.
@@ -39,7 +47,7 @@ from __future__ import annotations
 import time
 from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any, ClassVar
+from typing import Any, ClassVar, NoReturn
 
 import numpy as np
 
@@ -51,11 +59,11 @@ except ImportError as exc:  # pragma: no cover - exercised only without the extr
     raise ImportError("robofleet.envs needs the optional 'rl' extra: pip install 'robofleet[rl]'") from exc
 
 from ..avoidance.spec import Spec as AvoidanceSpec
-from ..core.config import SpecModel
+from ..core import arguments
+from ..core.config import MAX_MAGNITUDE, ScenarioSource, load_spec
 from ..core.errors import ConfigError, short_repr
 from ..core.rng import as_generator, resolve_seed
 from ..core.trace import Trace
-from ..scenarios import load_scenario
 from .fleet import Fleet
 from .render import EpisodeLog, current_state, frame
 
@@ -64,19 +72,26 @@ ENV_NAME = "robofleet_avoidance_v0"
 
 @dataclass(frozen=True)
 class RewardWeights:
-    """Weights of the reward terms: per metre of progress, per contact, on arrival."""
+    """Weights of the reward terms: per metre of progress, per contact, on arrival; each a
+    finite real number of magnitude at most ``1e9`` (else a one-line :class:`ConfigError`)."""
 
     progress: float = 1.0
     contact: float = -1.0
     arrival: float = 1.0
 
+    def __post_init__(self) -> None:
+        for name in ("progress", "contact", "arrival"):
+            value = getattr(self, name)
+            if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer, np.floating)) \
+                    or not abs(float(value)) <= MAX_MAGNITUDE:
+                raise ConfigError(f"rewards.{name}: expected a finite real number of magnitude at most {MAX_MAGNITUDE:g}, "
+                                  f"received {short_repr(value)}")
+            object.__setattr__(self, name, float(value))
 
-def avoidance_spec(scenario: object, overrides: Mapping[str, Any] | None = None) -> AvoidanceSpec:
-    """An avoidance spec from a spec, a shipped name, a YAML file or a mapping."""
-    spec = scenario if isinstance(scenario, SpecModel) and overrides is None else load_scenario(scenario, overrides)
-    if not isinstance(spec, AvoidanceSpec):
-        raise ConfigError(f"scenario: expected an avoidance scenario, received one of family {getattr(spec, 'family', '?')!r}")
-    return spec
+
+def avoidance_spec(scenario: ScenarioSource, overrides: Mapping[str, Any] | None = None) -> AvoidanceSpec:
+    """An avoidance spec from a shipped name, a YAML file, a mapping or a spec (:func:`~robofleet.core.config.load_spec`)."""
+    return load_spec(scenario, AvoidanceSpec, overrides, argument="scenario")
 
 
 class AvoidanceParallelEnv(ParallelEnv):
@@ -87,14 +102,15 @@ class AvoidanceParallelEnv(ParallelEnv):
     def __init__(self, spec: AvoidanceSpec, safety: str = "buavc", *, max_steps: int | None = None, max_neighbours: int = 6,
                  rewards: RewardWeights = RewardWeights(), render_mode: str | None = None, record_cells: bool | None = None):
         self.fleet = Fleet(spec, safety)
-        self.spec, self.safety, self.rewards = spec, safety, rewards
+        self.spec, self.safety = spec, safety
+        self.rewards = arguments.instance(rewards, RewardWeights, "rewards", "a RewardWeights(progress=…, contact=…, arrival=…)")
         self.max_steps = spec.max_steps if max_steps is None else checked_count(max_steps, "max_steps", 1)
         self.max_neighbours = checked_count(max_neighbours, "max_neighbours", 0)
         if render_mode not in (None, *self.metadata["render_modes"]):
             raise ConfigError(f"render_mode: expected None or one of {self.metadata['render_modes']}, received {render_mode!r}")
         self.render_mode = render_mode
         n = sum(t.n for t in spec.team_specs())
-        self.record_cells = (n <= 64) if record_cells is None else bool(record_cells)
+        self.record_cells = (n <= 64) if record_cells is None else arguments.flag(record_cells, "record_cells")
         self.possible_agents = [f"robot_{i}" for i in range(n)]
         self.agent_index = {a: i for i, a in enumerate(self.possible_agents)}
         self.v_max = np.concatenate([np.full(t.n, t.v_max) for t in spec.team_specs()])
@@ -102,6 +118,7 @@ class AvoidanceParallelEnv(ParallelEnv):
         self.agents: list[str] = []
         self._rng: np.random.Generator | None = None
         self.episode_seed: int | None = None
+        self.log: EpisodeLog | None = None
 
     # -- spaces -----------------------------------------------------------------------------
     def observation_space(self, agent: str) -> spaces.Box:
@@ -137,11 +154,22 @@ class AvoidanceParallelEnv(ParallelEnv):
         obs = self.fleet.observations(self.max_neighbours)
         return {a: obs[i] for i, a in enumerate(self.agents)}, {a: {} for a in self.agents}
 
+    def started(self, call: str) -> EpisodeLog:
+        """The episode's log, or a :class:`ConfigError` naming ``call`` before the first ``reset()``."""
+        if self.log is None:
+            raise ConfigError(f"{call}: expected a call to reset() first, received {call} before any reset()")
+        return self.log
+
     def step(self, actions: Mapping[str, Any]) -> tuple[dict, dict, dict, dict, dict]:
+        self.started("step()")
+        if not self.agents:
+            raise ConfigError("step(): expected a call to reset() after every agent terminated or was truncated, "
+                              "received step() on the finished episode")
         fleet = self.fleet
+        desired = self.desired_velocities(actions)
         t0 = time.perf_counter()
         before = fleet.goal_distance()
-        outcome = fleet.step(self.desired_velocities(actions))
+        outcome = fleet.step(desired)
         after = fleet.goal_distance()
         newly = (after <= self.spec.goal_tolerance) & ~fleet.arrived
         fleet.arrived |= newly
@@ -161,22 +189,20 @@ class AvoidanceParallelEnv(ParallelEnv):
         return out
 
     def desired_velocities(self, actions: Mapping[str, Any]) -> np.ndarray:
-        """``(N, 2)`` desired velocities from the action dict (zero for robots not in it)."""
+        """``(N, 2)`` desired velocities from the action dict (zero for robots not in it):
+        two finite real numbers per agent (see the module docstring), else a one-line
+        :class:`ConfigError` naming the agent."""
         if not isinstance(actions, Mapping):
             raise ConfigError(f"actions: expected a mapping agent -> velocity (2,), received {type(actions).__name__}")
         desired = np.zeros((len(self.possible_agents), 2))
         if not actions:
             return desired
         rows = [self.check_agent(agent) for agent in actions]
-        try:
-            values = np.array(list(actions.values()), dtype=float)
-        except (TypeError, ValueError):
-            values = np.full((len(rows), 0), np.nan)
-        if values.shape != (len(rows), 2) or not np.all(np.isfinite(values)):
-            for agent, action in actions.items():
-                value = np.asarray(action, dtype=object)
-                if value.shape != (2,) or not all(isinstance(x, (int, float, np.number)) and np.isfinite(float(x)) for x in value):
-                    raise ConfigError(f"actions[{agent!r}]: expected 2 finite numbers (a velocity), received {short_repr(action)}")
+        values = np.stack([real_pair(action, agent) for agent, action in actions.items()]).astype(float)
+        finite = np.all(np.isfinite(values), axis=1)
+        if not finite.all():
+            agent = list(actions)[int(np.argmin(finite))]
+            bad_action(agent, actions[agent])
         desired[rows] = values
         return desired
 
@@ -191,16 +217,35 @@ class AvoidanceParallelEnv(ParallelEnv):
         if self.render_mode is None:
             logger.warn("render() called without a render_mode; build the environment with render_mode='rgb_array'")
             return None
-        return frame(current_state(self.fleet, self.steps), self.log.last_cells())
+        log = self.started("render()")
+        return frame(current_state(self.fleet, self.steps), log.last_cells())
 
     def trace(self) -> Trace:
         """The episode so far as a :class:`Trace` (arrays, metadata and the avoidance
         family's per-run results), for :func:`robofleet.viz.avoidance.plot_trace` and
         ``animate_trace``."""
-        return self.log.trace(self.fleet, seed=self.episode_seed, method=self.safety)
+        return self.started("trace()").trace(self.fleet, seed=self.episode_seed, method=self.safety)
 
     def close(self) -> None:
         """Nothing to release (figures are closed when drawn)."""
+
+
+def real_pair(action: object, agent: str) -> np.ndarray:
+    """``action`` as a ``(2,)`` array of real numbers (integer or float dtype; no boolean,
+    complex or text entry), else a one-line :class:`ConfigError` naming the agent."""
+    if isinstance(action, (list, tuple)) and any(isinstance(x, (bool, np.bool_)) for x in action):
+        bad_action(agent, action)
+    try:
+        array = np.asarray(action)
+    except (TypeError, ValueError):
+        bad_action(agent, action)
+    if array.shape != (2,) or array.dtype.kind not in "iuf":
+        bad_action(agent, action)
+    return array
+
+
+def bad_action(agent: str, action: object) -> NoReturn:
+    raise ConfigError(f"actions[{agent!r}]: expected 2 finite numbers (a real velocity), received {short_repr(action)}")
 
 
 def checked_count(value: object, name: str, least: int) -> int:
@@ -210,13 +255,15 @@ def checked_count(value: object, name: str, least: int) -> int:
     return int(value)
 
 
-def parallel_env(scenario: object = "avoidance/circle_swap", safety: str = "buavc", *, overrides: Mapping[str, Any] | None = None,
-                 **options: Any) -> AvoidanceParallelEnv:
+def parallel_env(scenario: ScenarioSource = "avoidance/circle_swap", safety: str = "buavc", *,
+                 overrides: Mapping[str, Any] | None = None, **options: Any) -> AvoidanceParallelEnv:
     """The PettingZoo parallel environment of an avoidance scenario.
 
     Parameters
     ----------
-    scenario: a shipped name (``"avoidance/three_boxes"``), a YAML file, a mapping, or a spec.
+    scenario: a shipped name (``"avoidance/three_boxes"``), a YAML file, a mapping, or a
+        spec (:func:`~robofleet.core.config.load_spec`, as ``SafetyFilter.from_spec`` and
+        ``Supervisor.from_scenario`` take them).
     safety: ``"buavc"`` (actions pass through the B-UAVC safety filter) or ``"none"``.
     overrides: dotted-path overrides applied to the scenario (``{"robots.n": 20}``).
     options: ``max_steps``, ``max_neighbours``, ``rewards`` (:class:`RewardWeights`),
@@ -225,6 +272,6 @@ def parallel_env(scenario: object = "avoidance/circle_swap", safety: str = "buav
     return AvoidanceParallelEnv(avoidance_spec(scenario, overrides), safety, **options)
 
 
-def env(scenario: object = "avoidance/circle_swap", safety: str = "buavc", **kwargs: Any):
+def env(scenario: ScenarioSource = "avoidance/circle_swap", safety: str = "buavc", **kwargs: Any):
     """The same environment as a PettingZoo AEC environment (``parallel_to_aec``)."""
     return parallel_to_aec(parallel_env(scenario, safety, **kwargs))

@@ -7,7 +7,8 @@ One step (the avoidance family's noise model, ``robofleet.avoidance.simulation``
 
 1. every robot's position estimate is its TRUE position plus a draw from ``N(0, Σ_i)``,
    every obstacle's a draw from ``N(0, Σ_o)`` (one seeded generator per episode);
-2. desired velocities are limited to ``v_max`` (the robots' physical limit) and, with
+2. desired velocities are limited to ``v_max`` (the robots' physical limit, :func:`limited`:
+   shortened along their direction, for every finite value however large) and, with
    ``safety="buavc"``, filtered against every robot's B-UAVC built from the estimates;
    robots that have arrived hold still (they stay in the world as parked robots);
 3. the TRUE positions move by ``u Δt`` and are kept inside the workspace shrunk by
@@ -30,7 +31,6 @@ from ..avoidance.projection import project_onto_cells
 from ..avoidance.safety_filter import (
     FilterResult,
     SafetyFilter,
-    saturate,
     single_integrator_spec,
 )
 from ..avoidance.simulation import World
@@ -105,15 +105,15 @@ class Fleet:
     # -- step -------------------------------------------------------------------------------
     def step(self, desired: np.ndarray) -> StepOutcome:
         """Filter (or not), move, judge contacts, then sense for the next step."""
-        desired = np.where(self.arrived[:, None], 0.0, desired)
+        desired, too_fast = limited(np.where(self.arrived[:, None], 0.0, desired), self.world.v_max)
         result = None
         if self.safety_filter is None:
-            velocity = saturate(desired, self.world.v_max)
+            velocity = desired
             filtered, inside, empty = np.zeros(self.n, bool), np.ones(self.n, bool), np.zeros(self.n, bool)
         else:
             result = self.safety_filter.filter(self.estimates, self.covs, desired, self.obstacle_offsets)
             velocity = np.where(self.arrived[:, None], 0.0, result.velocity)
-            filtered, inside, empty = result.modified & ~self.arrived, result.estimate_in_cell, result.empty
+            filtered, inside, empty = (result.modified | too_fast) & ~self.arrived, result.estimate_in_cell, result.empty
         self.positions = self.keep_inside(self.positions + velocity * self.spec.dt)
         self.velocity = velocity
         contacts, used = self.contacts(), self.estimates
@@ -179,6 +179,21 @@ class Fleet:
         low = np.concatenate([lo, [-v, -v], -reach, np.tile([-box, -box, 0.0], k)])
         high = np.concatenate([hi, [v, v], reach, np.tile([box, box, 1.0], k)])
         return low, high
+
+
+def limited(desired: np.ndarray, v_max: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(u · min(1, v_max / ‖u‖), ‖u‖ > v_max)`` per row: the speed limit, which keeps the
+    direction of any finite ``u``. A row whose largest component exceeds ``v_max`` is first
+    divided by that component and multiplied by ``v_max`` (the same direction, components
+    at most ``v_max``), so no square overflows even for components near the largest float."""
+    largest = np.abs(desired).max(axis=1, initial=0.0)
+    over = largest > v_max
+    u = desired.astype(float, copy=True)
+    u[over] *= (v_max[over] / largest[over])[:, None]
+    speed = np.hypot(u[:, 0], u[:, 1])
+    too_fast = over | (speed > v_max)
+    u[too_fast] *= (v_max[too_fast] / speed[too_fast])[:, None]
+    return u, too_fast
 
 
 @dataclass(frozen=True)

@@ -20,7 +20,10 @@ A sweep file (YAML) or mapping has the keys
     Result store directory, relative to the working directory; default
     ``results/<sweep file stem>``.
 ``metrics``
-    Optional list of ``trace.summary()`` keys to keep (default: all).
+    Optional list of ``trace.summary()`` keys to keep (default: all): the core keys and
+    the scenario family's documented results (``FAMILY.results``); any other key is refused
+    before anything runs. A key the family documents for some runs only (flocking's
+    mirror-image keys) is empty in the rows of runs whose summary lacks it.
 
 Every combination's scenario is validated before anything runs, so a grid value that
 makes the scenario invalid is reported at once. Each row of the result is the run's
@@ -47,9 +50,9 @@ from pydantic import field_validator, model_validator
 from ..core import arguments
 from ..core.errors import ConfigError, Described, ScenarioError, short_repr
 from ..core.rng import MAX_SEED, spawn_seeds
-from ..core.trace import to_plain
-from ..core.config import SpecModel, read_mapping, set_path, validate_model
-from ..scenarios import catalogue, load_scenario, simulate
+from ..core.trace import CORE_SUMMARY_KEYS, to_plain
+from ..core.config import DEFAULT_FAMILY, SpecModel, read_mapping, set_path, validate_model
+from ..scenarios import catalogue, family, load_scenario, simulate
 from .executors import Executor, as_executor
 from .store import ERROR_COLUMN, ResultStore
 from .tasks import run_tasks
@@ -211,10 +214,7 @@ def simulate_task(task: dict, *, scenario: str | dict, fixed: Mapping[str, Any],
     summary = simulate(spec, seed=task["seed"], progress=False).summary()
     if metrics is None:
         return summary
-    missing = [m for m in metrics if m not in summary]
-    if missing:
-        raise KeyError(f"metrics {missing} are not summary keys; available: {sorted(summary)}")
-    return {m: summary[m] for m in metrics}
+    return {m: summary.get(m) for m in metrics}
 
 
 def stable_run_id(scenario: Mapping, parameters: Mapping, seed: int) -> str:
@@ -249,6 +249,8 @@ def plan_sweep(sweep_file_or_mapping: str | Path | Mapping[str, Any], out: str |
     scenario = read_mapping(scenario_ref)[0]
     for key, value in spec.overrides.items():
         set_path(scenario, key, value)
+    if spec.metrics is not None:
+        check_metrics(spec.metrics, scenario.get("family", DEFAULT_FAMILY), source)
     seeds = tuple(spawn_seeds(spec.root_seed, spec.seeds) if isinstance(spec.seeds, int) else spec.seeds)
     tasks = tuple(
         {"run_id": stable_run_id(scenario, combination, seed), "seed": seed, **combination}
@@ -290,6 +292,15 @@ def check_combination(scenario_ref: str | dict, combination: dict, source: str |
         raise ScenarioError(f"{where} → {inner}", exc.expected, exc.received, source=source) from None
     dumped = spec.model_dump(mode="json")
     return {key: get_path(dumped, key.split("+")[0], value) for key, value in combination.items()}
+
+
+def check_metrics(metrics: list[str], family_name: str, source: str | None) -> None:
+    """Refuse a metric that no summary of the family has (one line naming it and the keys there are)."""
+    known = [*CORE_SUMMARY_KEYS, *family(family_name, source).results]
+    unknown = [m for m in metrics if m not in known]
+    if unknown:
+        raise ScenarioError("metrics", f"summary keys of {family_name} runs ({', '.join(known)})",
+                            unknown[0] if len(unknown) == 1 else unknown, source=source)
 
 
 def check_distinct_points(combinations: tuple[dict, ...], source: str | None) -> None:

@@ -236,10 +236,13 @@ class Spec(SpecModel):
         (ASYNC: at most one per ``cycle_min`` per follower; FSYNC/SSYNC: one per time unit)."""
         m = self.expected_followers()
         steps = int(self.duration / self.sample_dt + 1e-9)
-        period = self.scheduler.cycle_min if self.scheduler.kind == "async" else 1.0
+        asynchronous = self.scheduler.kind == "async"
+        period = self.scheduler.cycle_min if asynchronous else 1.0
         cycles = m * (int(self.duration / period) + 1)
-        return RunSize(steps, 1 + m, 32, "duration / sample_dt", "followers.count", 40 * (steps + 1) + CYCLE_BYTES * cycles, "cycle log",
-                       "duration, scheduler.cycle_min")
+        followers = self.followers_field()
+        cycle_fields = f"{followers}, duration, scheduler.cycle_min, sample_dt" if asynchronous else f"{followers}, duration, sample_dt"
+        return RunSize(steps, 1 + m, 32, "duration, sample_dt", followers, 40 * (steps + 1) + CYCLE_BYTES * cycles, "cycle log",
+                       cycle_fields)
 
     def expected_followers(self) -> int:
         """The follower count as the fields give it: ``count``, else one per listed speed or
@@ -253,6 +256,13 @@ class Spec(SpecModel):
         if pattern.kind == "random":
             return pattern.n_points or 8
         return BUILTIN_SIZES.get(pattern.kind, 1)
+
+    def followers_field(self) -> str:
+        """The field that gives :meth:`expected_followers` its value."""
+        f, pattern = self.followers, self.pattern
+        if f.count or f.speeds or f.starts:
+            return "followers.count" if f.count else "followers.speeds" if f.speeds else "followers.starts"
+        return {"points": "pattern.points", "random": "pattern.n_points", "file": "pattern.path"}.get(pattern.kind, "pattern.kind")
 
 
 def check_followers(spec: Spec, pattern: Pattern, source: str | None = None) -> int:

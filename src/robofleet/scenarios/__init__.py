@@ -9,9 +9,10 @@ from __future__ import annotations
 import builtins
 from pathlib import Path
 
-from .catalogue import Entry, names, resolve
-from .catalogue import list as _catalogue_list
-from .catalogue import path as _catalogue_path
+from ..core import catalogue
+from ..core.catalogue import Entry, names, resolve
+from ..core.catalogue import list as _catalogue_list
+from ..core.catalogue import path as _catalogue_path
 from .registry import DEFAULT_FAMILY, FAMILIES, family, family_of, load_scenario, read_scenario, simulate
 
 
@@ -25,5 +26,5 @@ def path(name: str, kind: str = "scenarios") -> Path:
     return _catalogue_path(name, kind)
 
 
-__all__ = ["Entry", "FAMILIES", "DEFAULT_FAMILY", "family", "family_of", "list", "path", "names", "resolve",
+__all__ = ["catalogue", "Entry", "FAMILIES", "DEFAULT_FAMILY", "family", "family_of", "list", "path", "names", "resolve",
            "load_scenario", "read_scenario", "simulate"]

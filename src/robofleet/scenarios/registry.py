@@ -7,7 +7,6 @@ the CLI, viz and the conformance suite read it. A fifth family is one more impor
 
 from __future__ import annotations
 
-from pathlib import Path
 from typing import Any, Mapping
 
 import numpy as np
@@ -15,18 +14,25 @@ import numpy as np
 from ..avoidance.family import FAMILY as AVOIDANCE
 from ..coordination.family import FAMILY as COORDINATION
 from ..core.budget import check_run_size
-from ..core.config import SpecModel, read_mapping, set_path, validate_model
+from ..core.config import (
+    DEFAULT_FAMILY,
+    SOURCE_KINDS,
+    ScenarioSource,
+    SpecModel,
+    given_spec,
+    read_scenario,
+    scenario_data,
+    spec_from_data,
+)
 from ..core.errors import ConfigError, InfeasibleError, ScenarioError, short_repr
 from ..core.family import Family
 from ..core.trace import Trace
 from ..flocking.family import FAMILY as FLOCKING
 from ..search.family import FAMILY as SEARCH
-from . import catalogue
 
 FAMILIES: dict[str, Family] = {f.name: f for f in (AVOIDANCE, COORDINATION, FLOCKING, SEARCH)}
-DEFAULT_FAMILY = "avoidance"
 
-ScenarioRef = str | Path | Mapping[str, Any]
+__all__ = ["DEFAULT_FAMILY", "FAMILIES", "family", "family_of", "load_scenario", "read_scenario", "simulate"]
 
 
 def family(name: str, source: str | None = None) -> Family:
@@ -41,23 +47,15 @@ def family_of(spec: SpecModel) -> Family:
     return family(getattr(spec, "family", None))
 
 
-def read_scenario(ref: ScenarioRef) -> tuple[dict, str | None]:
-    """``(mapping, source)`` of a scenario file, shipped name or mapping."""
-    if isinstance(ref, Mapping):
-        return read_mapping(ref)
-    if not isinstance(ref, (str, Path)) or (isinstance(ref, str) and not ref.strip()):
-        raise ConfigError(f"scenario: expected a file path, a shipped scenario name or a mapping, received {type(ref).__name__} {short_repr(ref)}")
-    return read_mapping(catalogue.resolve(ref))
-
-
-def load_scenario(ref: ScenarioRef, overrides: Mapping[str, Any] | None = None) -> SpecModel:
+def load_scenario(ref: ScenarioSource, overrides: Mapping[str, Any] | None = None) -> SpecModel:
     """Read and validate a scenario.
 
     Parameters
     ----------
     ref:
         A YAML file path, a shipped scenario name (``"avoidance/circle_swap"``, see
-        :func:`robofleet.scenarios.list`), or a mapping with the same keys as a file.
+        :func:`robofleet.scenarios.list`), a mapping with the same keys as a file, or a
+        validated spec (returned as it is).
     overrides:
         Optional ``{"dotted.field": value}`` applied before validation (used by sweeps).
 
@@ -73,24 +71,16 @@ def load_scenario(ref: ScenarioRef, overrides: Mapping[str, Any] | None = None) 
     ConfigError
         When ``ref`` or ``overrides`` are not of a usable type.
     """
-    data, source = read_scenario(ref)
-    if overrides is not None and not isinstance(overrides, Mapping):
-        raise ConfigError(f"overrides: expected a mapping {{'dotted.field': value}}, received {type(overrides).__name__} {overrides!r}")
-    for key, value in (overrides or {}).items():
-        if not isinstance(key, str) or not key or any(not part for part in key.split(".")):
-            raise ConfigError(f"overrides: expected dotted field paths such as 'robots.radius' as keys, received {short_repr(key)}")
-        try:
-            set_path(data, key, value)
-        except ScenarioError as exc:
-            raise ScenarioError(f"overrides {key}: {exc.field}" if exc.field else f"overrides {key}", exc.expected, exc.received, source=source) from None
-    fam = family(data.setdefault("family", DEFAULT_FAMILY), source)
-    spec = validate_model(fam.spec, data, source)
-    spec._source = source
-    check_run_size(spec.run_size(), source)
-    return spec
+    if isinstance(ref, SpecModel):
+        name = getattr(ref, "family", None)
+        if not isinstance(name, str) or name not in FAMILIES:
+            raise ConfigError(f"scenario: expected {SOURCE_KINDS}, received a {type(ref).__name__} (not a whole scenario)")
+        return given_spec(ref, FAMILIES[name].spec, overrides, "scenario")
+    data, source = scenario_data(ref, overrides)
+    return spec_from_data(family(data.setdefault("family", DEFAULT_FAMILY), source).spec, data, source)
 
 
-def simulate(scenario: ScenarioRef | SpecModel, seed: int | None = None, progress: bool = False) -> Trace:
+def simulate(scenario: ScenarioSource, seed: int | None = None, progress: bool = False) -> Trace:
     """Run a scenario (a validated spec, or anything :func:`load_scenario` takes).
 
     ``seed=None`` draws a seed and records it (``trace.seed``);

@@ -217,8 +217,10 @@ class Spec(SpecModel):
         vertices = area_vertex_bound(self.workspace.model_dump_json(), self.grid.a)
         n, targets = self.robots.n, len(self.targets)
         extra = (VERTEX_BYTES + SENSING_BYTES + targets) * vertices + n * (MAP_BYTES * vertices + targets)
-        return RunSize(self.max_steps, n, 32, "max_steps", "robots.count" if self.robots.count is not None else "robots.starts",
-                       int(min(extra, 2**62)), "grid, sensing tables and maps", "grid.a")
+        robots_field = "robots.count" if self.robots.count is not None else "robots.starts"
+        target_share = targets * (vertices + n) / max(extra, 1)
+        extra_fields = f"grid.a, workspace, {robots_field}" + (", targets" if target_share >= 0.1 else "")
+        return RunSize(self.max_steps, n, 32, "max_steps", robots_field, int(min(extra, 2**62)), "grid, sensing tables and maps", extra_fields)
 
     def built_grid(self) -> Grid:
         """The grid of this scenario (built once per process per area, kind, ``a`` and ``r_safe``)."""

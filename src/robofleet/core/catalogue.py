@@ -5,8 +5,10 @@ Every shipped scenario has a name, its path below the catalogue folder without
 A checkout's own ``scenarios/`` and ``sweeps/`` folders win (so edits are picked up);
 an installed wheel carries copies as ``robofleet/_scenarios`` and ``robofleet/_sweeps``.
 
-Every command and :func:`robofleet.load_scenario` accept a name wherever they accept a
-path; :func:`resolve` decides which one was meant (an existing file wins).
+Every command, :func:`robofleet.load_scenario` and every object built from a scenario
+(:func:`~robofleet.core.config.load_spec`) accept a name wherever they accept a path;
+:func:`resolve` decides which one was meant (an existing file wins). The catalogue knows
+files, not families, so it sits in the core layer where every package can use it.
 """
 
 from __future__ import annotations
