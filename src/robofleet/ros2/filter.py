@@ -69,7 +69,7 @@ from ..core.errors import ConfigError, RobofleetError, ScenarioError, short_repr
 from ..scenarios import load_scenario
 from .messages import MessageError, cell_markers, polygon_message, read_pose, read_twist, rotate, string_message, twist_message
 from .runtime import (CELLS_TOPIC, DEFAULT_PREFIX, MAP_FRAME, BadInputLog, checked_frame, checked_prefix, robot_of_topic,
-                      robot_topic, stream_qos)
+                      robot_topic, stream_qos, wall_clock)
 
 POSE_TIMEOUT_STEPS = 5
 """Default ``pose_timeout``: this many control steps ``dt``."""
@@ -317,7 +317,7 @@ def make_filter_node(settings: FilterSettings, robot: int | None = None, use_sim
             self.pending: dict[int, np.ndarray] = {}
             self.flush = self.create_guard_condition(self.filter_pending)
             self.create_timer(settings.dt, self.publish_cells)
-            self.create_timer(2.0, self.report_unknown_robots)
+            self.create_timer(2.0, self.report_unknown_robots, clock=wall_clock())
             self.filtered = 0
             self.get_logger().info(f"filtering {len(served)} of {settings.n} robots ({settings.source}), "
                                    f"{settings.prefix}K/cmd_vel_nav -> {settings.prefix}K/cmd_vel")

@@ -69,6 +69,13 @@ def stream_qos(depth: int = 10) -> Any:
     return QoSProfile(depth=depth, reliability=ReliabilityPolicy.RELIABLE)
 
 
+def wall_clock() -> Any:
+    """A steady clock for timers that must run also while simulated time stands still."""
+    from rclpy.clock import Clock, ClockType
+
+    return Clock(clock_type=ClockType.STEADY_TIME)
+
+
 class BadInputLog:
     """One log line per bad message, at most one per ``(topic, reason)`` every ``period``
     seconds (a stream of malformed messages does not flood the log); the node goes on."""

@@ -30,7 +30,7 @@ import numpy as np
 from ..coordination.supervisor import Supervisor
 from ..core.errors import ConfigError, RobofleetError
 from .messages import MessageError, int_message, path_message, read_pose, read_step
-from .runtime import DEFAULT_PREFIX, MAP_FRAME, BadInputLog, latched_qos, robot_of_topic, robot_topic, stream_qos
+from .runtime import DEFAULT_PREFIX, MAP_FRAME, BadInputLog, latched_qos, robot_of_topic, robot_topic, stream_qos, wall_clock
 
 REPORTS = ("progress", "pose")
 """What the robots report: their plan step on ``<ns>/progress``, or their pose on ``<ns>/pose``."""
@@ -70,7 +70,7 @@ def make_supervisor_node(supervisor: Supervisor, prefix: str = DEFAULT_PREFIX, u
                 else:
                     self.create_subscription(PoseWithCovarianceStamped, robot_topic(prefix, i, "pose"), lambda m, i=i: self.on_pose(i, m), qos)
             self.create_timer(dt, self.answer_all)
-            self.create_timer(2.0, self.report_unknown_robots)
+            self.create_timer(2.0, self.report_unknown_robots, clock=wall_clock())
             self.unknown_reported: set[str] = set()
             self.answered = 0
             self.get_logger().info(f"supervising {n} robots ({supervisor.executor.variant.method.value}), "
