@@ -34,7 +34,8 @@ from .messages import cell_markers, goal_message, int_message, path_message, pol
 from .runtime import CELLS_TOPIC, DEFAULT_PREFIX, MAP_FRAME, robot_topic
 
 SEPARATOR = "=" * 80
-PRIMITIVES = {"boolean": "bool", "octet": "byte"}
+PRIMITIVES = {"boolean": "bool", "octet": "byte", "double": "float64", "float": "float32"}
+"""IDL names of primitive types that a .msg file spells differently."""
 
 
 # -- schemas ---------------------------------------------------------------------------------
