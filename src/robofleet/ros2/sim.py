@@ -19,8 +19,8 @@ Avoidance scenarios (2-D)
        from its estimate at the speed limit (a unicycle turns towards it first).
 
     Goals are published once on ``<ns>/goal`` (latched) and a new ``PoseStamped`` there
-    replaces the robot's goal. The run stops when every robot's estimate is within
-    ``goal_tolerance`` of its goal or after ``max_steps``; with ``out`` it is written as a
+    replaces the robot's goal. The run stops once every robot's estimate has come within
+    ``goal_tolerance`` of its goal (its arrival, as in-process) or after ``max_steps``; with ``out`` it is written as a
     trace (true positions, estimates, commands; the avoidance family's results judged on
     the true positions) that ``robofleet view`` and ``robofleet export --mcap`` read.
 
@@ -120,8 +120,7 @@ class AvoidanceFleet:
 
     @property
     def finished(self) -> bool:
-        at_goal = np.linalg.norm(self.estimates - self.goals, axis=1) <= self.spec.goal_tolerance
-        return bool(at_goal.all()) or self.steps >= self.spec.max_steps
+        return bool(np.all(self.arrival_steps >= 0)) or self.steps >= self.spec.max_steps
 
     def nominal(self) -> np.ndarray:
         """Straight-to-goal commands ``(n, 3)`` from the current estimates."""
