@@ -28,6 +28,7 @@ from ..core.trace import dumps_json
 from ..experiments import reproduce as run_reproduction
 from ..experiments import plan_sweep, run_sweep, summarize_sweep
 from ..experiments.reproductions import REPRODUCTIONS
+from ..ros2.cli import export_command, ros2_app
 from ..scenarios import FAMILIES, catalogue, family_of, load_scenario, simulate
 from ..viz.replay.building import MAX_FRAMES
 from .display import COLUMN_WIDTH, MIN_TABLE_COLUMNS, PREFERRED_COLUMNS, frame_table, key_value_table
@@ -206,6 +207,10 @@ def search_check_alias(scenario: ScenarioArgument) -> None:
 def flocking_check_alias(scenario: ScenarioArgument) -> None:
     """Earlier spelling of ``check`` for flocking scenarios."""
     check_command(scenario)
+
+
+app.add_typer(ros2_app, name="ros2")  # robofleet ros2 sim | filter | supervisor | launch (ros2 extra)
+app.command("export")(export_command)
 
 
 @app.command("scenarios")

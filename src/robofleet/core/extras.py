@@ -1,7 +1,8 @@
 """Optional dependencies: which extra provides what, and one-line errors when one is missing.
 
 ``pip install 'robofleet[mpc]'`` brings casadi and daqp (the MPC controllers),
-``robofleet[dask]`` the dask executor, ``robofleet[rerun]`` the Rerun export. Code that
+``robofleet[dask]`` the dask executor, ``robofleet[rerun]`` the Rerun export,
+``robofleet[ros2]`` rclpy, the standard message packages and mcap (the ROS 2 bridge). Code that
 needs one calls :func:`require` (a :class:`~robofleet.core.errors.ConfigError` naming the
 extra); validation calls :func:`missing` to refuse a scenario that could not run.
 """
@@ -16,6 +17,7 @@ EXTRAS: dict[str, tuple[str, ...]] = {
     "mpc": ("casadi", "daqp"),
     "dask": ("distributed",),
     "rerun": ("rerun",),
+    "ros2": ("rclpy", "geometry_msgs", "nav_msgs", "std_msgs", "visualization_msgs", "mcap"),
 }
 """Each extra and the modules it installs."""
 

@@ -5,7 +5,7 @@ packages, the import circles and the imports that break a rule (the architecture
 asserts there are none).
 
 Layers, bottom to top (docs/architecture.md): ``core``; ``dynamics`` and ``viz`` (each
-importing ``core`` only); the families; ``scenarios``; ``experiments`` and ``envs``; ``testing``;
+importing ``core`` only); the families; ``scenarios``; ``experiments``, ``envs`` and ``ros2``; ``testing``;
 ``cli``; the package's face ``robofleet/__init__.py`` and ``__main__.py``. A module imports its own package
 and lower layers only; families never import each other.
 """
@@ -21,7 +21,7 @@ from pathlib import Path
 PACKAGE = "robofleet"
 FAMILY_PACKAGES = ("avoidance", "coordination", "flocking", "search")
 LAYER = {"core": 0, "dynamics": 1, "viz": 1, **{f: 2 for f in FAMILY_PACKAGES}, "scenarios": 3,
-         "experiments": 4, "envs": 4, "testing": 5, "cli": 6, "": 7}
+         "experiments": 4, "envs": 4, "ros2": 4, "testing": 5, "cli": 6, "": 7}
 ONLY_CORE = ("dynamics", "viz")
 
 
