@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from coordination_instances import fig2_example, random_instance
+from coordination_instances import fig2_example, line, random_instance
 
 import robofleet
 from robofleet.coordination import Supervisor
@@ -18,6 +18,7 @@ from robofleet.coordination.coordination_space import build_coordination_space
 from robofleet.coordination.label_flipping import KnownProbabilities
 from robofleet.coordination.plan_execution import Method, PlanExecutor, Variant
 from robofleet.coordination.rmtrack import ActionRule
+from robofleet.coordination.trajectories import make_trajectories
 from robofleet.core.errors import ConfigError
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -203,20 +204,51 @@ def test_once_every_report_has_arrived_the_answers_are_those_of_the_true_state()
 
 
 def test_a_users_csv_plan_and_position_reports():
-    sup = Supervisor.from_csv(FIG2_PLAN, radius=1.0, dt=0.1, method="tff")
+    sup = Supervisor.from_csv(FIG2_PLAN, radius=1.0, dt=0.1, method="tff", position_tolerance=0.1)
     traj = sup.traj
-    assert sup.report(1, position=traj.positions[1, 0] + [0.3, 0.1]) == 0
+    assert sup.report(1, position=traj.positions[1, 0] + [0.06, 0.02]) == 0
     first = sup.answer(1)
     assert first.go and first.until == 10 and np.allclose(first.stop_at, traj.positions[1, 10])
     mid = traj.positions[1, 3] + 0.6 * (traj.positions[1, 4] - traj.positions[1, 3])
-    assert sup.report(1, position=mid) == 3  # between steps 3 and 4: step 3 passed, 4 not yet
+    assert sup.report(1, position=mid) == 3  # between steps 3 and 4, farther than 0.1 from the path before step 3
     assert sup.report(1, progress=1) == 3  # an old report changes nothing
-    assert sup.report(1, position=traj.positions[1, 0]) == 3
-    # robot 0's plan waits 8 steps at its start: standing there, it is credited with the
-    # wait steps it has been permitted (identical positions, identical conflicts)
-    assert sup.answer(0).until == 10 and sup.report(0, position=traj.positions[0, 0]) == 8
-    with pytest.raises(ConfigError, match=r"^position: expected a point within 1 of robot 1's plan between steps 3 and 10"):
-        sup.report(1, position=traj.positions[1, 0] + [5.0, 5.0])
+    with pytest.raises(ConfigError, match=r"^position: expected a point within 0.1 of robot 1's plan between steps 3 and 10, "
+                                         r"received \[-1.0, -6.0\] at distance 0.75$"):
+        sup.report(1, position=traj.positions[1, 0])  # where it was: not where it can be now
+    on_step_6 = traj.positions[1, 6] + [0.1, 0.0]  # at the tolerance: passes for a point just short of step 6
+    assert sup.report(1, position=on_step_6) == 5
+    assert sup.report(1, position=on_step_6, holding=True) == 6  # holding still: it stands on step 6
+    with pytest.raises(ConfigError, match=r"^position: expected a point within 0.1 of robot 1's plan between steps 6 and 6"):
+        sup.report(1, position=traj.positions[1, 7])  # holding at step 6, it has not moved on
+    # robot 0's plan waits 8 steps at its start: standing there it may be at any of them
+    assert sup.answer(0).until == 10 and sup.report(0, position=traj.positions[0, 0]) == 0
+
+
+def test_a_robot_that_cannot_be_told_apart_from_its_known_step_is_granted_a_step_past_where_it_may_stand():
+    """Robot 0's plan waits 8 steps at its start; with one step of look-ahead, each answer
+    grants one step past the furthest one its position fits, so it walks through the
+    wait (credited its first step) and is credited step 9 as soon as it stands there."""
+    sup = Supervisor.from_csv(FIG2_PLAN, radius=1.0, dt=0.1, position_tolerance=0.1, lookahead=1)
+    start = sup.traj.positions[0, 0]
+    assert sup.answer(0).until == 1
+    for step in range(1, 9):  # standing at steps 1 to 8
+        assert sup.report(0, position=start, holding=True) == 0 and sup.answer(0).until == step + 1
+    assert np.array_equal(sup.traj.positions[0, 8], start) and not np.array_equal(sup.traj.positions[0, 9], start)
+    assert sup.report(0, position=sup.traj.positions[0, 9], holding=True) == 9
+
+
+def test_a_position_on_a_path_that_backs_up_is_credited_its_first_visit():
+    """Out along a line and back over the same points: a robot on its way out is never
+    credited a step of the way back (another robot waiting for that step would go)."""
+    out = np.linspace([0.0, 0.0], [2.0, 0.0], 9)
+    traj = make_trajectories([np.vstack([out, out[-2::-1]]), line((1.0, -4.0), (1.0, 4.0), 0.25)], 0.25, 0.1)
+    sup = Supervisor(traj, position_tolerance=0.05, lookahead=None)
+    assert sup.answer(0).until == 16
+    assert sup.report(0, position=(0.5, 0.0), holding=True) == 2
+    assert sup.report(0, position=(0.75, 0.05)) == 2  # on step 3 (and 13 on the way back), moving: maybe just short of it
+    assert sup.report(0, position=(2.0, 0.0), holding=True) == 8
+    assert sup.answer(0).go
+    assert sup.report(0, position=(1.5, -0.05), holding=True) == 10
 
 
 @pytest.mark.parametrize("call, where", [
@@ -226,13 +258,30 @@ def test_a_users_csv_plan_and_position_reports():
     (lambda s: s.report(0), "report"),
     (lambda s: s.report(0, progress=1, position=(0, 0)), "report"),
     (lambda s: s.report(0, position=(np.nan, 0)), "position"),
+    (lambda s: s.report(0, progress=1, holding="yes"), "holding"),
     (lambda s: s.answer("a"), "robot"),
-    (lambda s: Supervisor(s.traj, method="fast"), "method, resolution"),
+    (lambda s: Supervisor(s.traj, method="fast"), "method"),
+    (lambda s: Supervisor(s.traj, resolution=3), "resolution"),
+    (lambda s: Supervisor(s.traj, deadlock_check="no"), "deadlock_check"),
     (lambda s: Supervisor(s.traj, probability=1.5), "probability"),
+    (lambda s: Supervisor(s.traj, probability=np.nan), "probability"),
+    (lambda s: Supervisor(s.traj, probability="0.1"), "probability"),
+    (lambda s: Supervisor(s.traj, probability=True), "probability"),
+    (lambda s: Supervisor(s.traj, probability=0.1j), "probability"),
+    (lambda s: Supervisor(s.traj, probability=[[0.1], [0.1, 0.2]]), "probability"),
+    (lambda s: Supervisor(s.traj, position_tolerance=np.nan), "position_tolerance"),
+    (lambda s: Supervisor(s.traj, position_tolerance=-0.5), "position_tolerance"),
+    (lambda s: Supervisor(s.traj, position_tolerance=np.inf), "position_tolerance"),
+    (lambda s: Supervisor(s.traj, position_tolerance="0.5"), "position_tolerance"),
+    (lambda s: Supervisor(s.traj, position_tolerance=True), "position_tolerance"),
+    (lambda s: Supervisor(s.traj, lookahead="3"), "lookahead"),
+    (lambda s: Supervisor(s.traj, lookahead=0), "lookahead"),
+    (lambda s: Supervisor(s.traj, executor="mine"), "executor"),
     (lambda s: Supervisor.from_scenario(robofleet.load_scenario("avoidance/circle_swap")), "spec"),
 ])
 def test_bad_input_is_a_one_line_error_naming_the_argument(call, where):
     sup = Supervisor.from_csv(FIG2_PLAN, radius=1.0, dt=0.1)
     with pytest.raises(ConfigError) as info:
         call(sup)
-    assert str(info.value).startswith(where + ":") and "\n" not in str(info.value)
+    message = str(info.value)
+    assert message.startswith(where + ": expected ") and ", received " in message and "\n" not in message

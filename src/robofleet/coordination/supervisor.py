@@ -8,15 +8,61 @@ Use
     ``sup.answer(i)`` tells it ``go`` (with the plan step ``until`` it may advance to) or
     ``wait`` (or ``done``). Reports only update what the supervisor knows; answers are
     computed from that knowledge, so they depend on which reports have arrived, never
-    on the order in which they did.
+    on the order in which they did. Any thread may call any method (see *Threads*).
 
 What it knows
-    For every robot the largest plan step it has reported (an older report arriving
-    late changes nothing: progress only grows) — a lower bound of its true progress —
-    and the furthest step it may have reached: the ``until`` of its latest answer,
-    unless it has since reported that it holds still (``holding=True``: it stays at the
-    reported step until it receives an answer given after that report; a robot of a
-    discrete-step simulation holds between steps).
+    For every robot a lower bound of its true progress, ``known`` (the plan step it has
+    certainly reached: the largest step it has reported, or what its positions prove,
+    below), and an upper bound, ``reach`` (the furthest step it may have reached: the
+    ``until`` of its answers, unless it has since reported that it holds still —
+    ``holding=True``: it stays at the reported step until it receives an answer given
+    after that report; a robot of a discrete-step simulation holds between steps). An
+    older report arriving late changes nothing: ``known`` only grows. And the furthest
+    step its latest report lets it stand at, ``standing`` (its known step after a
+    progress report).
+
+Position reports
+    A robot with true progress ``t`` (the last plan step it has reached) stands at
+    ``π(t)`` or, moving on, on the segment from ``π(t)`` to ``π(t + 1)``; holding still it
+    stands at ``π(t)``. A reported position ``p`` is *consistent* with a step ``s`` of the
+    robot's window ``known ≤ s ≤ reach`` when ``p`` lies within ``position_tolerance`` of
+    where a robot at progress ``s`` can stand (the point ``π(s)`` for a holding report or
+    ``s = reach``, else the segment ``π(s) → π(s + 1)``). The report credits the robot the
+    *smallest* consistent step, and a holding report sets ``reach`` to the *largest*.
+
+    Condition: the reported position lies within ``position_tolerance`` of where the
+    robot is when the report is recorded (the tolerance covers the sensing error and
+    the distance the robot may travel while its report is in transit; progress reports
+    need no such condition).
+
+    Claim: then ``known ≤ t ≤ reach`` at every moment, for any plan (one that passes the
+    same point twice, backs up or waits) and any error within the tolerance. Proof, by
+    induction over events. Initially all three are 0. A robot moves only up to the
+    ``until`` of an answer, and every ``until`` given is counted in ``reach`` (a robot
+    that has reported holding moves only on answers given after that report, whose
+    ``until`` are counted again), so ``t ≤ reach`` holds as the robot moves; answers
+    only raise ``reach``. A progress report ``k`` is a step the robot has reached
+    (``k ≤ t``; a holding one is its current step, ``k = t``), and ``known`` becomes
+    ``max(known, k) ≤ t``. A position report: by the induction hypothesis ``t`` lies in the
+    window, and by the condition the report is consistent with ``t``, so the smallest
+    consistent step is ``≤ t`` and, for a holding report, the largest is ``≥ t``.
+    Distances are compared with a margin of a few rounding errors (:data:`ROUNDING`),
+    which only widens the consistent set. ∎ Since every decision below reads ``known``
+    as the robots' progress and ``reach`` as how far they may be, the guarantees need
+    nothing else from the positions.
+
+    What it costs: a step that cannot be told apart from an earlier one is not
+    credited, and the robots that wait for it wait longer. A moving robot's report never
+    credits the step it stands on (it could be just short of it): a robot that stops
+    says so (``holding=True``), at its goal too. A holding robot at step ``u`` is
+    credited ``u`` once a report of it lands farther than the tolerance from ``π(s)``
+    for every window step ``s < u``; with errors that vary from report to report this
+    happens unless its plan stood at a point within ``2 · position_tolerance`` of
+    ``π(u)`` earlier within the window (a wait, short steps, a revisit), and otherwise
+    as soon as the robot has moved on. So that an ambiguous report never leaves a robot
+    standing past its grant, an answer grants at least one step past the furthest step
+    the robot's latest report lets it stand at (see ``until`` below): a robot that is not
+    held back by Eq. 1 always moves on.
 
 The decisions (one code path with the simulation)
     An answer runs, on the known progress, exactly the decision step of the family's
@@ -35,30 +81,48 @@ The decisions (one code path with the simulation)
       moved since it reported.)
 
     ``until`` is the last step before the first column where Eq. 1 would stop the robot,
-    given what is known now, and at most ``lookahead`` steps ahead: advancing column by column there keeps Eq. 1's invariant
-    (every column ``≤ x_i`` of an obstacle labelled ``j`` lies below ``x_j``), since the
-    others' progress only grows; a flip never moves it back (flips need the other robot
-    to be before the obstacle).
+    given what is known now, and at most ``lookahead`` steps ahead — or one step past the
+    furthest step its latest report lets it stand at, if that is further (a position
+    report that several steps fit): advancing column by column there keeps Eq. 1's
+    invariant (every column ``≤ x_i`` of an obstacle labelled ``j`` lies below ``x_j``),
+    since the others' progress only grows; a flip never moves it back (flips need the
+    other robot to be before the obstacle).
+
+Threads
+    Every public method holds the supervisor's (re-entrant) lock while it runs, so calls
+    from several threads take effect one at a time, as if made in some order by one
+    thread: a decision is computed from the knowledge of one instant and cached only
+    until the next report that changes that knowledge (no report can slip in between
+    computing a decision and caching it, which would keep an outdated decision, and
+    robots waiting on it, for good), and two decisions never run on the shared flip
+    state at once.
 
 Guarantees
-    With a collision-free plan and robots that never pass their latest ``until``: no
-    collision in the coordination space (Eq. 1's invariant), and, with the deadlock check
-    on, every flip kept leaves the active segment graph acyclic (Theorems 1–2 with the
-    exact resolution). As soon as every robot's latest report has arrived, the answers
-    are those of the simulation in the same state (the tests replay recorded
-    simulations through it with reports late, out of order and missing for a while).
-    A robot that stops reporting can only make others wait for it.
+    With a collision-free plan, robots that never pass their latest ``until`` and
+    positions within the tolerance (above): no collision in the coordination space (Eq.
+    1's invariant), and, with the deadlock check on, every flip kept leaves the active
+    segment graph acyclic (Theorems 1–2 with the exact resolution). As soon as every
+    robot's latest report has arrived, the answers are those of the simulation in the
+    same state (the tests replay recorded simulations through it with reports late, out
+    of order and missing for a while). A robot that stops reporting can only make others
+    wait for it.
 """
 
 from __future__ import annotations
 
+import functools
+import threading
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TypeVar
 
 import numpy as np
 
+from ..core import arguments
 from ..core.config import ScenarioSource, load_spec
 from ..core.errors import ConfigError, short_repr
+from ..core.geometry import point_segment_distance
 from ..core.rng import resolve_seed
 from .coordination_space import CoordinationSpace, build_coordination_space
 from .instance import prepare_instance
@@ -71,6 +135,23 @@ from .trajectories import Trajectories, load_trajectories
 
 DEFAULT_LOOKAHEAD = 10
 """Plan steps granted past a robot's known progress at most (1 s at the paper's Δ = 100 ms)."""
+
+ROUNDING = 1e-9
+"""Relative margin on the distances of a position report (see *Position reports*): a
+position exactly at the tolerance is never refused for a rounding error."""
+
+Result = TypeVar("Result")
+
+
+def locked(method: Callable[..., Result]) -> Callable[..., Result]:
+    """Run ``method`` holding its supervisor's lock (see *Threads* in the module docstring)."""
+
+    @functools.wraps(method)
+    def run_locked(self: Supervisor, *args, **kwargs) -> Result:
+        with self._lock:
+            return method(self, *args, **kwargs)
+
+    return run_locked
 
 
 @dataclass(frozen=True)
@@ -111,23 +192,31 @@ class Supervisor:
     method: ``"rmtrack"``, ``"tff"`` or ``"tfa"``.
     deadlock_check: refuse flips that close a cycle in the segment graph.
     probability: disturbance probability used by the flip tests' expected times, one
-        number or ``(n, K_max + 1)`` per robot and plan step.
+        number or ``(n, K_max + 1)`` per robot and plan step, in ``[0, 1)``.
     resolution: segment-graph resolution (``"exact"`` or ``"definition3"``).
-    position_tolerance: largest distance of a reported position from the robot's plan
-        (default: the robot radius).
+    position_tolerance: largest distance of a reported position from where the robot is
+        when the report is recorded, a number ``≥ 0`` (default: the robot radius). Known
+        progress stays a lower bound of the true progress as long as reports keep to it
+        (see *Position reports* in the module docstring).
     lookahead: at most this many plan steps past its known progress are granted to a
         robot at once (``None``: up to the first column Eq. 1 would stop it). A robot
         that reports less often than every ``lookahead`` steps stops and waits for its
         next answer; a longer look-ahead leaves fewer flips possible, since a flip needs
         the other robot not yet permitted into the obstacle.
     executor: a ready :class:`~.plan_execution.PlanExecutor` on the same plan (used by
-        :meth:`from_scenario`; the other parameters are then ignored).
+        :meth:`from_scenario`; ``method``, ``deadlock_check``, ``probability`` and
+        ``resolution`` are then ignored).
+
+    Every public method may be called from any thread: each holds the supervisor's lock
+    while it runs (see *Threads* in the module docstring).
     """
 
     def __init__(self, trajectories: Trajectories, *, method: str = "rmtrack", deadlock_check: bool = True,
                  probability: float | np.ndarray = 0.05, resolution: str = "exact", position_tolerance: float | None = None,
                  lookahead: int | None = DEFAULT_LOOKAHEAD, executor: PlanExecutor | None = None):
-        self.executor = executor or plan_executor(trajectories, method, deadlock_check, probability, resolution)
+        if executor is None:
+            executor = plan_executor(trajectories, method, deadlock_check, probability, resolution)
+        self.executor = arguments.instance(executor, PlanExecutor, "executor", "a PlanExecutor or None")
         self.traj, self.space = self.executor.traj, self.executor.space
         self.execution_state: ExecutionState = self.executor.start(0)
         n = self.traj.n_robots
@@ -135,12 +224,12 @@ class Supervisor:
         self.reach = np.zeros(n, np.intp)
         self.rounds = 0
         self._decision: Decision | None = None
-        self.tolerance = float(self.traj.radius if position_tolerance is None else position_tolerance)
-        if lookahead is not None and (isinstance(lookahead, bool) or not isinstance(lookahead, (int, np.integer)) or lookahead < 1):
-            raise ConfigError(f"lookahead: expected an integer ≥ 1 or None, received {short_repr(lookahead)}")
-        self.lookahead = lookahead
+        self._lock = threading.RLock()
+        self.tolerance = self.traj.radius if position_tolerance is None else tolerance_value(position_tolerance)
+        self.lookahead = arguments.count(lookahead, "lookahead", minimum=1, optional=True)
         self._entries = ProfileEntries.of(self.space)
         self._first_sides = 2 * np.arange(self.space.n_obstacles)
+        self.standing = np.zeros(n, np.intp)
 
     # -- construction ---------------------------------------------------------------------------
     @classmethod
@@ -162,22 +251,31 @@ class Supervisor:
         return cls(instance.trajectories, executor=make_executor(spec, instance, workspace, variant), **options)
 
     # -- what the robots say --------------------------------------------------------------------
+    @locked
     def report(self, robot: int, *, progress: int | None = None, position: object = None, holding: bool = False) -> int:
         """Record a robot's report: its plan step ``progress`` or its ``position``.
 
         A report older than what is known (a smaller step) changes nothing. ``holding``:
         the robot holds still at this step until it receives an answer given after this
-        report (answers given before it no longer count). Returns the step now known for
-        the robot.
+        report (answers given before it no longer count). A position credits the smallest
+        plan step it is consistent with, which is never past the robot's true progress
+        when the position lies within ``position_tolerance`` of where the robot is (see
+        *Position reports* in the module docstring). Returns the step now known for the
+        robot.
         """
         i = self.robot_index(robot)
+        holding = arguments.flag(holding, "holding")
         if (progress is None) == (position is None):
             raise ConfigError(f"report: expected exactly one of progress= or position=, received progress={progress!r}, position={short_repr(position)}")
-        step = self.checked_step(i, progress) if progress is not None else self.step_of_position(i, position)
-        if step > self.known[i]:
-            self.known[i] = step
+        if progress is not None:
+            lowest = highest = self.checked_step(i, progress)
+        else:
+            lowest, highest = self.steps_of_position(i, position, holding)
+        if lowest > self.known[i]:
+            self.known[i] = lowest
             self._decision = None
-        reach = self.known[i] if holding else max(self.reach[i], self.known[i])
+        self.standing[i] = max(self.known[i], highest)
+        reach = max(self.known[i], highest) if holding else max(self.reach[i], self.known[i])
         if reach < self.reach[i]:  # a robot known to hold still may be offered flips again
             self._decision = None
         self.reach[i] = reach
@@ -195,24 +293,24 @@ class Supervisor:
             raise ConfigError(f"progress: expected robot {i}'s plan step, an integer in 0..{k}, received {short_repr(progress)}")
         return int(progress)
 
-    def step_of_position(self, i: int, position: object) -> int:
-        """The last plan step a robot at ``position`` has passed, among the steps it can be
-        at (known progress to its furthest possible step): the segment of its plan nearest
-        to the position, its end only once reached (ties: the later segment)."""
-        try:
-            p = np.asarray(position, dtype=float)
-        except (TypeError, ValueError):
-            p = np.full(1, np.nan)
-        if p.shape != (2,) or not np.all(np.isfinite(p)):
-            raise ConfigError(f"position: expected 2 finite numbers (x, y), received {short_repr(position)}")
+    def steps_of_position(self, i: int, position: object, holding: bool) -> tuple[int, int]:
+        """The smallest and the largest step of robot ``i``'s window (known progress to its
+        furthest possible step) that a robot at ``position`` may be at: within the
+        tolerance of where a robot at that step stands (its plan point when ``holding``
+        or at the window's end, else the segment on to the next step)."""
+        p = checked_position(position)
         lo, hi = int(self.known[i]), int(max(self.reach[i], self.known[i]))
-        step, dist = nearest_step(self.traj.positions[i, lo: hi + 1], p)
-        if dist > self.tolerance:
+        window = self.traj.positions[i, lo: hi + 1]
+        distance = distances_to_steps(window, p, holding)
+        margin = ROUNDING * (self.tolerance + float(np.abs(window).max()) + float(np.abs(p).max()))
+        consistent = np.flatnonzero(distance <= self.tolerance + margin)
+        if len(consistent) == 0:
             raise ConfigError(f"position: expected a point within {self.tolerance:g} of robot {i}'s plan between steps {lo} and {hi}, "
-                              f"received {p.tolist()} at distance {dist:.3g}")
-        return lo + step
+                              f"received {p.tolist()} at distance {distance.min():.3g}")
+        return lo + int(consistent[0]), lo + int(consistent[-1])
 
     # -- what they are told ---------------------------------------------------------------------
+    @locked
     def answer(self, robot: int) -> Answer:
         """``go`` (up to ``until``), ``wait`` or ``done`` for one robot, from what is known now."""
         i = self.robot_index(robot)
@@ -226,6 +324,7 @@ class Supervisor:
         self.reach[i] = max(self.reach[i], until)
         return self._answer(i, "go", until)
 
+    @locked
     def answers(self) -> list[Answer]:
         """The answer of every robot (one decision round)."""
         return [self.answer(i) for i in range(self.traj.n_robots)]
@@ -233,6 +332,7 @@ class Supervisor:
     def _answer(self, i: int, action: str, until: int) -> Answer:
         return Answer(i, action, until, int(self.known[i]), self.traj.positions[i, until].copy())
 
+    @locked
     def decision(self) -> Decision:
         """The executor's decision step on what is known (cached until a report adds something)."""
         if self._decision is None:
@@ -267,9 +367,12 @@ class Supervisor:
     def horizon(self, i: int) -> int:
         """The furthest step robot ``i`` may advance to now: before the first column where
         Eq. 1 stops it, given the others' known progress (at most ``lookahead`` steps
-        ahead and its goal step). ``O(log P + entries in the window)``, vectorized."""
+        ahead — or one step past the furthest step its latest report lets it stand at, if
+        that is further — and at most its goal step). ``O(log P + entries in the window)``,
+        vectorized."""
         x = int(self.known[i])
-        until = int(self.traj.lengths[i]) if self.lookahead is None else min(int(self.traj.lengths[i]), x + self.lookahead)
+        goal = int(self.traj.lengths[i])
+        until = goal if self.lookahead is None else min(goal, max(x + self.lookahead, int(self.standing[i]) + 1))
         e = self._entries
         lo, hi = e.start[i], e.start[i + 1]
         rows = slice(lo + np.searchsorted(e.col[lo:hi], x, "right"), lo + np.searchsorted(e.col[lo:hi], until, "right"))
@@ -280,16 +383,19 @@ class Supervisor:
 
     # -- what happened ----------------------------------------------------------------------------
     @property
+    @locked
     def labels(self) -> np.ndarray:
         """Current obstacle labels (the robot that passes first)."""
         return self.execution_state.labels.copy()
 
     @property
+    @locked
     def events(self) -> list[dict]:
-        """``flip``, ``flip_refused`` (and ``deadlock``: no robot may move given what is known) events."""
-        return self.execution_state.events
+        """``flip``, ``flip_refused`` (and ``deadlock``: no robot may move given what is known) events so far."""
+        return list(self.execution_state.events)
 
     @property
+    @locked
     def stats(self) -> dict:
         """Counts of flips, refused flips, flip tests and their compute time."""
         return dict(self.execution_state.stats)
@@ -319,35 +425,58 @@ class ProfileEntries:
 def plan_executor(traj: Trajectories, method: str, deadlock_check: bool, probability: float | np.ndarray,
                   resolution: str) -> PlanExecutor:
     """A :class:`PlanExecutor` on a user's plan with the given flip policy."""
-    try:
-        variant = Variant(Method(method), bool(deadlock_check))
-        resolution = Resolution(resolution)
-    except ValueError:
-        raise ConfigError(f"method, resolution: expected one of {[m.value for m in Method]} and one of {[r.value for r in Resolution]}, "
-                          f"received {method!r}, {resolution!r}") from None
-    space: CoordinationSpace = build_coordination_space(traj)
+    variant = Variant(choice(method, Method, "method"), arguments.flag(deadlock_check, "deadlock_check"))
+    resolution = choice(resolution, Resolution, "resolution")
     p = probability_table(probability, traj)
+    space: CoordinationSpace = build_coordination_space(traj)
     return PlanExecutor(traj, space, variant, KnownProbabilities(p, traj.dt), p, resolution=resolution)
 
 
-def probability_table(probability: float | np.ndarray, traj: Trajectories) -> np.ndarray:
+def choice(value: object, options: type[Method] | type[Resolution], name: str) -> Method | Resolution:
+    """``value`` as a member of the string enum ``options``, or a one-line error naming ``name``."""
+    try:
+        return options(value)
+    except ValueError:
+        raise ConfigError(f"{name}: expected one of {[o.value for o in options]}, received {short_repr(value)}") from None
+
+
+def probability_table(probability: object, traj: Trajectories) -> np.ndarray:
     """``(n, K_max + 1)`` disturbance probabilities in ``[0, 1)`` from a number or a table."""
     shape = traj.positions.shape[:2]
-    table = np.asarray(probability, dtype=float)
-    if table.shape not in ((), shape) or not np.all((table >= 0) & (table < 1)):
+    try:
+        table = np.asarray(probability)
+    except (TypeError, ValueError):  # ragged nesting
+        table = np.asarray(None)
+    if table.dtype.kind not in "iuf" or table.shape not in ((), shape) or not np.all((table >= 0) & (table < 1)):
         raise ConfigError(f"probability: expected a number in [0, 1) or an array {shape} of them, received {short_repr(probability)}")
-    return np.broadcast_to(table, shape).copy()
+    return np.broadcast_to(table.astype(float), shape).copy()
 
 
-def nearest_step(path: np.ndarray, p: np.ndarray) -> tuple[int, float]:
-    """Index into ``path`` ``(m, 2)`` of the last point a robot at ``p`` has passed, and
-    its distance to the path (nearest segment; its end counts once reached)."""
-    if len(path) == 1:
-        return 0, float(np.linalg.norm(path[0] - p))
-    start, seg = path[:-1], path[1:] - path[:-1]
-    length2 = np.einsum("kd,kd->k", seg, seg)
-    t = np.where(length2 > 0, np.einsum("kd,kd->k", p - start, seg) / np.where(length2 > 0, length2, 1.0), 1.0)
-    t = np.clip(t, 0.0, 1.0)
-    dist = np.linalg.norm(start + t[:, None] * seg - p, axis=1)
-    k = int(np.flatnonzero(dist <= dist.min() + 1e-12)[-1])
-    return k + int(t[k] >= 1.0 - 1e-12), float(dist[k])
+def tolerance_value(value: object) -> float:
+    """``position_tolerance`` as a finite float ``≥ 0``, or a one-line error."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer, np.floating)) \
+            or not np.isfinite(value) or value < 0:
+        raise ConfigError(f"position_tolerance: expected a finite number ≥ 0 or None, received {short_repr(value)}")
+    return float(value)
+
+
+def checked_position(position: object) -> np.ndarray:
+    """A reported position as 2 finite floats, or a one-line error."""
+    try:
+        p = np.asarray(position, dtype=float)
+    except (TypeError, ValueError):
+        p = np.full(1, np.nan)
+    if p.shape != (2,) or not np.all(np.isfinite(p)):
+        raise ConfigError(f"position: expected 2 finite numbers (x, y), received {short_repr(position)}")
+    return p
+
+
+def distances_to_steps(window: np.ndarray, p: np.ndarray, holding: bool) -> np.ndarray:
+    """Distance from ``p`` to where a robot at each step of ``window`` ``(m, 2)`` may
+    stand: the step's point when ``holding`` (and at the window's last step), else the
+    segment from it to the next step (a moving robot has not yet reached the next one)."""
+    to_points = np.linalg.norm(window - p, axis=1)
+    if holding or len(window) == 1:
+        return to_points
+    to_segments = point_segment_distance(p, window[:-1], window[1:])
+    return np.append(to_segments, to_points[-1])

@@ -1,0 +1,269 @@
+"""Closed loops through the online supervisor, for its adversarial tests.
+
+* :func:`position_loop`: robots that report noisy positions (errors uniform in the
+  tolerance disc, a quarter of them on its rim), moving between plan steps, holding
+  still now and then, their answers late and lost; every tick checks that the known
+  progress is a lower bound of the true one and that no two robots are in collision.
+* :func:`threaded_loop`: every robot driven by its own thread (report, answer, move),
+  with seeded random sleeps between and inside the supervisor's calls.
+
+Plans: :func:`wandering_instance` (paths that back up over themselves, come back to
+the very points they left, wait, and take steps both shorter and longer than the
+tolerance) and :func:`crossing_instance` (a robot's last step conflicts with another
+robot's path while its goal does not: the other robot waits for exactly that report).
+"""
+
+from __future__ import annotations
+
+import heapq
+import threading
+import time
+from dataclasses import dataclass
+
+import numpy as np
+from coordination_instances import _apart, line
+
+from robofleet.coordination import Supervisor
+from robofleet.coordination.coordination_space import build_coordination_space
+from robofleet.coordination.label_flipping import KnownProbabilities
+from robofleet.coordination.plan_execution import Method, PlanExecutor, Variant
+from robofleet.coordination.trajectories import Trajectories, first_plan_collision, make_trajectories
+from robofleet.core.errors import InfeasibleError
+from robofleet.core.geometry import point_segment_distance
+
+
+# -- plans ------------------------------------------------------------------------------------------
+def wandering_path(rng: np.random.Generator, start: np.ndarray, goal: np.ndarray, centre: np.ndarray,
+                   tolerance: float) -> np.ndarray:
+    """From ``start`` to ``goal`` through random legs around ``centre``: out and back to
+    the very point left, out and back to within the tolerance of it, a detour closing on
+    itself, a wait; each leg with its own step length (a fifth of the tolerance to 0.35)."""
+    points = [np.asarray(start, float)]
+    here = points[0]
+
+    def walk(to):
+        nonlocal here
+        step = rng.uniform(0.2 * tolerance, 0.35)
+        count = max(1, int(np.ceil(np.linalg.norm(to - here) / step)))
+        points.extend(here + (to - here) * np.linspace(0, 1, count + 1)[1:, None])
+        here = np.asarray(to, float)
+
+    walk(centre + rng.uniform(-1, 1, 2))
+    for kind in rng.choice(["back", "near", "detour", "wait"], int(rng.integers(1, 4))):
+        origin = here + (tolerance * rng.uniform(-1, 1, 2) if kind == "near" else 0.0)
+        if kind == "wait":
+            points.extend([here.copy()] * int(rng.integers(1, 8)))
+            continue
+        walk(centre + rng.uniform(-1.5, 1.5, 2))
+        if kind == "detour":
+            walk(centre + rng.uniform(-1.5, 1.5, 2))
+        walk(origin)
+    walk(np.asarray(goal, float))
+    return np.array(points)
+
+
+def wandering_instance(rng: np.random.Generator, n_robots: int, tolerance: float, radius: float = 0.5,
+                       max_tries: int = 500) -> Trajectories:
+    """A collision-free plan of :func:`wandering_path` paths from a circle (radius 4.5)
+    to roughly opposite points through its centre, each robot's start and goal at least
+    ``2.1 r`` from the other robots' paths, with the smallest start delays (random
+    priority) that keep it collision-free; at least ``n − 1`` obstacles."""
+    for _ in range(max_tries):
+        angle = rng.permutation(n_robots) * 2 * np.pi / n_robots + rng.uniform(0, 0.5, n_robots)
+        goal_angle = angle + np.pi + rng.uniform(-0.8, 0.8, n_robots)
+        ring = lambda a: 4.5 * np.column_stack([np.cos(a), np.sin(a)])  # noqa: E731
+        starts, goals = ring(angle), ring(goal_angle)
+        paths = [wandering_path(rng, starts[i], goals[i], np.zeros(2), tolerance) for i in range(n_robots)]
+        if not ends_clear_of_others(paths, 2.1 * radius):
+            continue
+        delayed = smallest_delays(paths, radius, rng)
+        if delayed is None:
+            continue
+        traj = make_trajectories(delayed, radius, 0.1)
+        try:
+            if build_coordination_space(traj).n_obstacles >= n_robots - 1:
+                return traj
+        except InfeasibleError:
+            continue
+    raise RuntimeError("no wandering instance found")
+
+
+def crossing_instance(rng: np.random.Generator, pairs: int = 1, radius: float = 0.5, speed: float = 0.3) -> Trajectories:
+    """Pairs of a *crosser*, whose path crosses a *walker*'s line and ends just past it
+    (its last step within ``2r`` of the line, its goal not), and the walker, delayed
+    to pass after it: the walker waits for the crosser's very last report."""
+    paths = []
+    for k in range(pairs):
+        x0 = 8.0 * k
+        y = rng.uniform(-1, 1)
+        paths.append(line((x0 + 3 + rng.uniform(0, 1), y), (x0 - 2 * radius - rng.uniform(0.02, 0.25), y), speed))
+        paths.append(line((x0, -4 + rng.uniform(-0.5, 0.5)), (x0, 4), speed))
+    return make_trajectories(smallest_delays(paths, radius, rng, order=np.arange(len(paths))), radius, 0.1)
+
+
+def ends_clear_of_others(paths: list[np.ndarray], clearance: float) -> bool:
+    """Every start and goal at least ``clearance`` from every other robot's path (Definition 4)."""
+    for i, path in enumerate(paths):
+        for j, other in enumerate(paths):
+            if i != j and len(other) > 1 and point_segment_distance(path[[0, -1]], other[:-1], other[1:]).min() < clearance:
+                return False
+    return True
+
+
+def smallest_delays(paths, radius, rng, order=None, max_delay=600):
+    """Each robot in turn (random priority) after the smallest start delay that keeps it
+    ``2r`` from the robots placed before; ``None`` when some robot finds none."""
+    placed, delayed = [], [None] * len(paths)
+    for i in rng.permutation(len(paths)) if order is None else order:
+        for delay in range(0, max_delay):
+            candidate = np.vstack([np.repeat(paths[i][:1], delay, axis=0), paths[i]])
+            if all(_apart(candidate, other, 2 * radius) for other in placed):
+                break
+        else:
+            return None
+        placed.append(candidate)
+        delayed[i] = candidate
+    return delayed
+
+
+def executor_for(traj: Trajectories, method: str, probability: float | np.ndarray = 0.2) -> PlanExecutor:
+    """A checked RMTRACK / RMTRACK+TFF / RMTRACK+TFA executor on the plan."""
+    space = build_coordination_space(traj)
+    p = np.broadcast_to(probability, traj.positions.shape[:2]).astype(float)
+    assert first_plan_collision(traj) is None
+    return PlanExecutor(traj, space, Variant(Method(method), True), KnownProbabilities(p, traj.dt), p)
+
+
+# -- position reports ---------------------------------------------------------------------------------
+@dataclass
+class LoopResult:
+    ticks: int
+    contacts: int
+    overestimates: int
+    stalled: bool
+
+
+def error_in_disc(rng: np.random.Generator, tolerance: float, toward: np.ndarray) -> np.ndarray:
+    """A point of the disc of radius ``tolerance``: uniform, on its rim one time in four,
+    and one time in three pointing to ``toward`` (a later step of the plan: the error
+    that best passes for progress)."""
+    radius = tolerance if rng.random() < 0.25 else tolerance * np.sqrt(rng.random())
+    angle = rng.uniform(0, 2 * np.pi)
+    direction = np.array([np.cos(angle), np.sin(angle)])
+    if rng.random() < 1 / 3 and np.linalg.norm(toward) > 0:
+        direction = toward / np.linalg.norm(toward)
+    return radius * direction
+
+
+def contacts_at(traj: Trajectories, x: np.ndarray) -> int:
+    """Pairs of robots closer than ``2r`` at their plan steps ``x`` (in one collision region)."""
+    pos = traj.at(x)
+    gap = np.linalg.norm(pos[:, None] - pos[None], axis=-1)
+    return int(np.count_nonzero(np.triu(gap < 2 * traj.radius, k=1)))
+
+
+def position_loop(executor: PlanExecutor, seed: int, tolerance: float, lookahead: int | None,
+                  max_delay: int = 3, max_ticks: int | None = None) -> LoopResult:
+    """Robots move along their plans on the answers they receive, report noisy positions
+    (between steps while moving; ``holding=True`` half the time they are at rest, after
+    which they ignore the answers given before), answers arrive late or not at all."""
+    traj, rng = executor.traj, np.random.default_rng(seed)
+    n = traj.n_robots
+    sup = Supervisor(traj, executor=executor, position_tolerance=tolerance, lookahead=lookahead)
+    x, part = np.zeros(n, np.intp), np.zeros(n)  # true progress; fraction of the way to x + 1
+    allowed = np.zeros(n, np.intp)
+    floor, held = np.zeros(n, int), np.zeros(n, bool)  # answers older than floor are ignored; holding still
+    inbox, serial, overestimates, contacts = [], 0, 0, 0
+    max_ticks = max_ticks or 30 * int(traj.lengths.max()) + 300
+    for tick in range(max_ticks):
+        for i in rng.permutation(n).tolist():
+            if rng.random() < 0.3:
+                continue
+            hold = bool(part[i] == 0 and rng.random() < 0.5)
+            path, goal = traj.positions[i], int(traj.lengths[i])
+            here = path[x[i]] + part[i] * (path[min(x[i] + 1, goal)] - path[x[i]])
+            later = path[min(goal, x[i] + int(rng.integers(1, 15)))] - here
+            overestimates += sup.report(i, position=here + error_in_disc(rng, tolerance, later), holding=hold) > x[i]
+            serial += 1
+            if hold:
+                floor[i], held[i], allowed[i] = serial, True, x[i]
+            answer = sup.answer(i)
+            if rng.random() < 0.9:
+                heapq.heappush(inbox, (tick + int(rng.integers(0, max_delay + 1)), serial, i, answer.until))
+        while inbox and inbox[0][0] <= tick:
+            _, sent, i, until = heapq.heappop(inbox)
+            if sent >= floor[i]:
+                held[i], allowed[i] = False, max(allowed[i], until)
+        moving = ~held & ((part > 0) | (x < allowed)) & (rng.random(n) >= executor.probability[np.arange(n), x])
+        part = np.where(moving, part + rng.uniform(0.3, 1.0, n), part)
+        arrived = part >= 1
+        x, part = x + arrived, np.where(arrived, 0.0, part)
+        contacts += contacts_at(traj, x)
+        overestimates += int(np.count_nonzero(sup.known > x))
+        if np.all(x >= traj.lengths):
+            return LoopResult(tick, contacts, overestimates, False)
+    return LoopResult(max_ticks, contacts, overestimates, True)
+
+
+# -- threads ------------------------------------------------------------------------------------------
+class World:
+    """The robots' true progress, moved under a lock; a run is over when every robot is at
+    its goal, or stalled when every thread has gone ``quiet_rounds`` rounds (report,
+    answer, move attempt) since the last move."""
+
+    def __init__(self, traj: Trajectories, quiet_rounds: int = 40):
+        self.traj, self.lock, self.quiet_rounds = traj, threading.Lock(), quiet_rounds
+        self.x = np.zeros(traj.n_robots, np.intp)
+        self.quiet = np.zeros(traj.n_robots, int)
+        self.contacts, self.stalled, self.over, self.error = 0, False, False, None
+
+    def step(self, i: int, until: int, disturbed: bool) -> None:
+        with self.lock:
+            if self.x[i] < until and not disturbed:
+                self.x[i] += 1
+                self.quiet[:] = 0
+                self.contacts += contacts_at(self.traj, self.x)
+            else:
+                self.quiet[i] += 1
+            self.stalled = bool(self.quiet.min() >= self.quiet_rounds)
+            self.over = self.over or self.stalled or bool(np.all(self.x >= self.traj.lengths))
+
+
+class SleepySupervisor(Supervisor):
+    """A supervisor whose decisions take a random while (seeded sleeps before and after
+    computing), so that other threads' reports arrive while one is being made."""
+
+    def __init__(self, *args, sleep: float, seed: int, **kwargs):
+        super().__init__(*args, **kwargs)
+        self.sleep, self.rng = sleep, np.random.default_rng(seed)
+
+    def decide(self):
+        time.sleep(self.rng.uniform(0, self.sleep))
+        decision = super().decide()
+        time.sleep(self.rng.uniform(0, self.sleep))
+        return decision
+
+
+def threaded_loop(executor: PlanExecutor, seed: int, lookahead: int = 1, sleep: float = 2e-4) -> World:
+    """Every robot driven by its own thread: report its progress, (random sleep) ask for its
+    answer, try one step (disturbed with the plan's probability); all random draws seeded."""
+    traj = executor.traj
+    world = World(traj)
+    sup = SleepySupervisor(traj, executor=executor, lookahead=lookahead, sleep=sleep, seed=seed)
+
+    def drive(i: int, rng: np.random.Generator) -> None:
+        try:
+            while not world.over:
+                sup.report(i, progress=int(world.x[i]))
+                time.sleep(rng.uniform(0, sleep))
+                answer = sup.answer(i)
+                world.step(i, answer.until if answer.go else -1, rng.random() < executor.probability[i, world.x[i]])
+        except Exception as error:  # noqa: BLE001 - reported by the test
+            world.error, world.over = repr(error), True
+
+    threads = [threading.Thread(target=drive, args=(i, np.random.default_rng([seed, i]))) for i in range(traj.n_robots)]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join()
+    return world
