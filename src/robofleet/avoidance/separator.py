@@ -220,12 +220,17 @@ def shared_separator_row(xi, yi, xj, yj, mode, solve):
     ``a = Σ⁻¹(p̂_j − p̂_i)`` — the reciprocal diagonal for a diagonal Σ, which is how the
     LU solve :func:`numpy.linalg.solve` of the vectorized form rounds too, else 2×2 LU with
     partial pivoting — then ``b = aᵀ(p̂_i + p̂_j)/2``, both divided by ``‖a‖``;
-    ``p̂_j − p̂_i`` is first scaled by a power of two (module docstring, "Scale"). Every
+    ``p̂_j − p̂_i`` is first scaled by a power of two when its size is outside
+    ``(1e-150, 1e150)`` (module docstring, "Scale"; exact, so the bits are those of the
+    vectorized form, which always scales). Every
     operation is odd in ``p̂_j − p̂_i`` or symmetric in ``(i, j)``, so robot j's row for
     the same pair is exactly ``(−a, −b)`` (appendix B).
     """
-    exponent = math.frexp(max(abs(xj - xi), abs(yj - yi)))[1]
-    d0, d1 = math.ldexp(xj - xi, -exponent), math.ldexp(yj - yi, -exponent)
+    d0, d1 = xj - xi, yj - yi
+    size = max(abs(d0), abs(d1))
+    if not 1e-150 < size < 1e150:  # scale only where a square could leave the floating-point range (exact either way)
+        exponent = math.frexp(size)[1]
+        d0, d1 = math.ldexp(d0, -exponent), math.ldexp(d1, -exponent)
     if mode == SHARED_ZERO:
         a0, a1 = d0, d1
     elif mode == SHARED_DIAGONAL:
