@@ -1,9 +1,11 @@
 """Chance-constrained buffers of the B-UAVC (Zhu et al. 2022; notes/buavc.md "Buffer").
 
-``β = r_s + Φ⁻¹(√(1 − δ)) · √(aᵀ Σ_i a)`` with ``‖a‖ = 1``. Robot ``i`` then stays on its
-side of the separator, at least ``r_s`` from it, with probability ``≥ √(1 − δ)``; robot
-``j`` likewise; independence gives ``≥ 1 − δ`` for the pair, and the slab of width
-``2 r_s`` separates the two discs.
+``β = r + Φ⁻¹(√(1 − δ)) · √(aᵀ Σ_i a)`` with ``‖a‖ = 1``, ``Σ_i`` the ego covariance and
+``r`` the radius the row keeps: the pair's mean radius ``(r_i + r_j)/2`` for a neighbour,
+the robot's own ``r_i`` for an obstacle or a wall (:mod:`.cell`). Robot ``i`` then stays on
+its side of the separator, at least ``r`` from it, with probability ``≥ √(1 − δ)``; robot
+``j`` likewise with its own ``Σ_j``; independence gives ``≥ 1 − δ`` for the pair, and the
+slab of width ``r_i + r_j`` separates the two discs.
 """
 
 from __future__ import annotations

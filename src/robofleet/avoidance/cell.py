@@ -1,17 +1,66 @@
 """Buffered uncertainty-aware Voronoi cells (Zhu et al. 2022, Sec. "B-UAVC"; notes/buavc.md "Cell").
 
-``V_i = {p : a_ijᵀp ≤ b_ij − β_ij ∀ neighbours j;  a_ioᵀp ≤ b_io − β_io ∀ obstacles o;
-walls tightened the same way}``, recomputed every control step from the current
+``V_i = {p : a_ijᵀp ≤ b_ij − ρ_ij − β_ij ∀ neighbours j;  a_ioᵀp ≤ b_io − r_i − β_io ∀ obstacles o;
+walls tightened like obstacles}``, recomputed every control step from the current
 estimates, with only the neighbours and obstacles inside robot i's local box
-``p̂_i ± R_loc`` taken into account.
+``p̂_i ± R_loc`` taken into account; ``β = Φ⁻¹(√(1 − δ)) √(aᵀΣ_i a)`` is robot i's own
+chance buffer (:mod:`.buffer`) and ``ρ_ij = (r_i + r_j)/2`` the pair's mean radius.
+
+Pairs of robots (any radii, any covariances)
+    For the pair (i, j) both robots compute the same separating plane ``aᵀx = b``
+    (appendix B; ``a`` a unit normal from i towards j). Robot i keeps
+    ``aᵀx ≤ b − ρ_ij − q √(aᵀΣ_i a)`` and robot j keeps ``−aᵀx ≤ −b − ρ_ij − q √(aᵀΣ_j a)``,
+    ``q = Φ⁻¹(√(1 − δ))``: the same ``ρ_ij`` on both sides, each robot its own Σ.
+    (Equivalently: the plane moved ``(r_j − r_i)/2`` towards robot i, each robot keeping
+    its own radius from it.)
+
+    *Exact estimates* (Σ = 0). When both robots end a step in their cells, the two rows
+    add to ``aᵀ(p_j − p_i) ≥ 2ρ_ij = r_i + r_j``, so ``‖p_j − p_i‖ ≥ r_i + r_j``. More holds:
+    pair distances ``≥ r_i + r_j`` are an invariant of every closed loop in which each robot
+    either holds still or ends its step on the segment from its position to a point of
+    its cell (the safety filter, the one-step controller) — even when a cell is empty or a
+    wall blocks a robot. With Σ = 0 the plane is the perpendicular bisector
+    (``a = (p_j − p_i)/‖p_j − p_i‖``, ``b = aᵀ(p_i + p_j)/2``), so robot j at rest satisfies its
+    row, ``−aᵀp_j = −b − ‖p_j − p_i‖/2 ≤ −b − ρ_ij``, whenever ``‖p_j − p_i‖ ≥ 2ρ_ij``; a row
+    is a half-space, so every point of a segment from ``p_j`` to a point of the cell
+    satisfies it too; the two rows give the bound at the next step. The mean is the only
+    split of ``r_i + r_j`` with this property (robot j at rest needs its share
+    ``≤ ‖p_j − p_i‖/2`` for every distance ``≥ r_i + r_j``, and so does robot i). Each robot
+    keeping its own radius from the bisector loses it: a small robot driving at a large one
+    held at a wall ends ``2 r_i`` from it, not ``r_i + r_j``.
+
+    *The plane's offset.* For equal covariances (and Σ = 0) it is the midpoint,
+    ``b = aᵀ(p̂_i + p̂_j)/2``. For unequal ones appendix B's minimax plane equalises the
+    misclassification of the two *centres*: ``b_B = aᵀp̂_i + σ_i D/(σ_i + σ_j)`` with
+    ``D = aᵀ(p̂_j − p̂_i)`` and ``σ = √(aᵀΣa)``. For discs that leaves the better-localised
+    robot (σ_i < σ_j) outside its own cell whenever the pair is as close as the buffers
+    allow (``b_B − aᵀp̂_i < ρ_ij + qσ_i`` at ``D = 2ρ_ij + q(σ_i + σ_j)``): the premise fails
+    exactly when it matters (two robots of radius 0.2 m with σ 0.03 and 0.1 m driven
+    head-on, δ = 0.1: 16 % of their close steps touched). The offset is therefore equalised for the discs,
+    each Gaussian moved by ``ρ_ij`` towards the other:
+    ``b = aᵀp̂_i + ρ_ij + σ_i (D − 2ρ_ij)/(σ_i + σ_j) = b_B + ρ_ij (σ_j − σ_i)/(σ_i + σ_j)``
+    (:func:`disc_offsets`; reciprocal, the midpoint again for equal σ). Robot i's row then
+    holds at its estimate iff ``σ_i ((D − 2ρ_ij)/(σ_i + σ_j) − q) ≥ 0``: both estimates lie
+    in their cells exactly when ``D ≥ 2ρ_ij + q(σ_i + σ_j)``.
+
+    *Chance constraint* (Sec. 4, unequal radii and covariances). Let robot i's true
+    position be ``N(p̂_i, Σ_i)`` with ``p̂_i`` in its cell, independent of robot j's. Then
+    ``aᵀp_i ~ N(aᵀp̂_i, σ_i²)``, ``σ_i = √(aᵀΣ_i a)``, and ``aᵀp̂_i ≤ b − ρ_ij − q σ_i``, so
+    ``Pr(aᵀp_i ≤ b − ρ_ij) ≥ Φ(q) = √(1 − δ)`` (1 when σ_i = 0); likewise
+    ``Pr(aᵀp_j ≥ b + ρ_ij) ≥ √(1 − δ)``. By independence both hold with probability
+    ``≥ 1 − δ``, and then ``aᵀ(p_j − p_i) ≥ r_i + r_j``. Hence
+    ``Pr(‖p_i − p_j‖ < r_i + r_j) ≤ δ`` per pair and step, for any radii, any Σ_i and Σ_j
+    and any plane both robots compute alike. Obstacles and walls keep the robot's own
+    ``r_i`` (the obstacle bound of appendix A is per robot).
 
 Cells of all robots are stored as padded half-space arrays (:class:`Cells`), each robot's
 rows in the order neighbours (by index), obstacles, walls. When all robots share one Σ in
 the plane, a compiled kernel builds each robot's rows from its own view, robots in
 parallel; robot j's plane for a pair is then exactly ``(−a, −b)`` of robot i's (appendix
-B). Otherwise the builder evaluates each unordered pair once and gives robot j the
-reciprocal plane. :func:`cell_from_view` builds one robot's cell from its local view
-alone and is the reference the tests compare the batch against.
+B). Otherwise (or when the estimates spread too far for the uniform grid) the builder
+evaluates each unordered pair once and gives robot j the reciprocal plane.
+:func:`cell_from_view` builds one robot's cell from its local view alone and is the
+reference the tests compare the batch against: the same rows.
 """
 
 from __future__ import annotations
@@ -102,12 +151,24 @@ def neighbour_pairs(estimates: np.ndarray, local_box: float) -> np.ndarray:
     (2-D: uniform grid, sorted by ``(i, j)``; 3-D: k-d tree)."""
     if len(estimates) < 2:
         return np.empty((0, 2), dtype=np.intp)
-    if estimates.shape[1] == 2:
+    if estimates.shape[1] == 2 and grid_fits(estimates, local_box):
         start, index = box_neighbours(estimates, local_box)
         owner = np.repeat(np.arange(len(estimates), dtype=np.intp), np.diff(start))
         keep = owner < index
         return np.column_stack([owner[keep], index[keep].astype(np.intp)])
     return cKDTree(estimates).query_pairs(local_box, p=np.inf, output_type="ndarray").reshape(-1, 2)
+
+
+GRID_CELLS_MAX = 2.0**62
+"""Most cells the uniform grid of :mod:`.neighbours` may span (its integer cell keys are
+``c_x · rows + c_y``); estimates spread wider (``1e20`` m apart) use a k-d tree."""
+
+
+def grid_fits(estimates: np.ndarray, local_box: float) -> bool:
+    """Whether the estimates' bounding box spans fewer than :data:`GRID_CELLS_MAX` grid cells of side R_loc."""
+    with np.errstate(over="ignore"):
+        span = np.ptp(estimates, axis=0) / local_box + 1.0
+    return bool(np.prod(span) < GRID_CELLS_MAX)
 
 
 def build_cells(
@@ -124,7 +185,8 @@ def build_cells(
     ----------
     estimates: ``(N, d)`` position estimates p̂.
     covs: ``(N, d, d)`` estimate covariances Σ (zeros for the deterministic BVC).
-    radius: ``(N,)`` safety radii r_s (inflated for the inflated-BVC baseline).
+    radius: ``(N,)`` safety radii r_i, one per robot (inflated for the inflated-BVC
+        baseline); a pair keeps ``r_i + r_j`` (module docstring).
     quantile: ``Φ⁻¹(√(1 − δ))``.
     geometry: obstacles and walls.
     local_box: R_loc, half-width of the local box.
@@ -140,7 +202,7 @@ def build_cells(
     check_cell_inputs(estimates, covs, radius, geometry)
     n, d = estimates.shape
     obstacles = _obstacle_rows(estimates, covs, radius, quantile, geometry.obstacles, local_box)
-    if d == 2 and n > 0 and _uniform(covs):
+    if d == 2 and n > 0 and _uniform(covs) and grid_fits(estimates, local_box):
         return _shared_cells_2d(estimates, covs[0], radius, quantile, geometry, obstacles, local_box)
     pairs = neighbour_pairs(estimates, local_box)
     parts = [_robot_rows(estimates, covs, radius, quantile, pairs), obstacles,
@@ -152,10 +214,10 @@ def _shared_cells_2d(p, cov, radius, quantile, geometry: CellGeometry, obstacles
     """Cells of 2-D robots sharing Σ, one compiled pass per robot.
 
     Robot i's rows, in increasing neighbour index, are ``a = Σ⁻¹(p̂_j − p̂_i)/‖·‖``,
-    ``b = aᵀ(p̂_i + p̂_j)/2 − β − r_s`` (:func:`~.separator.shared_separator_row`: Eqs.
-    (48)–(50) with t = ½), then its obstacle rows, then its wall rows (walls within
-    R_loc, ``b_w − β(a_w) − r_s``). Robot j computes exactly ``(−a, −b)`` for the same
-    pair (the formulas are odd in ``p̂_j − p̂_i`` and symmetric in ``p̂_i + p̂_j``), so each
+    ``b = aᵀ(p̂_i + p̂_j)/2 − β − ρ_ij`` (:func:`~.separator.shared_separator_row`: Eqs.
+    (48)–(50) with t = ½; ``ρ_ij = (r_i + r_j)/2``), then its obstacle rows, then its wall
+    rows (walls within R_loc, ``b_w − β(a_w) − r_i``). Robot j computes exactly ``(−a, −b)``
+    for the same pair (the formulas are odd in ``p̂_j − p̂_i`` and symmetric in ``p̂_i + p̂_j``), so each
     robot's rows come from its own view: a first pass gathers every robot's neighbours
     (sizing the padded arrays), a second writes every robot's rows once, robots in
     parallel (:mod:`.kernels`).
@@ -271,7 +333,8 @@ def _fill_rows(lo, hi, p, near, count, mode, solve, c00, c01, c11, quantile, rad
             j = near[i, t]
             a0, a1, off = shared_separator_row(x, y, p[j, 0], p[j, 1], mode, solve)
             quad = a0 * (c00 * a0 + 2 * c01 * a1) + c11 * (a1 * a1)  # aᵀΣa, as buffer.buffer
-            _put(A, b, valid, kinds, src, i, t, a0, a1, (off - (0.0 + quantile * np.sqrt(max(quad, 0.0)))) - radius[i], 0, j)
+            pair_radius = 0.5 * (radius[i] + radius[j])  # ρ_ij, the same for robot j (module docstring)
+            _put(A, b, valid, kinds, src, i, t, a0, a1, (off - (0.0 + quantile * np.sqrt(max(quad, 0.0)))) - pair_radius, 0, j)
         t = count[i]
         for e in range(o_start[i], o_start[i + 1]):
             _put(A, b, valid, kinds, src, i, t, o_a[e, 0], o_a[e, 1], o_b[e], 1, o_src[e])
@@ -292,18 +355,29 @@ def _put(A, b, valid, kinds, src, i, t, a0, a1, off, kind, source):
 
 
 def _robot_rows(p, covs, radius, quantile, pairs):
+    """Both robots' rows of every pair ``(i, j)``: the pair's plane, ``ρ_ij`` and each robot's
+    own buffer (module docstring)."""
     i, j = pairs[:, 0], pairs[:, 1]
     owner = np.concatenate([i, j])
-    if _uniform(covs):  # every robot has the same Σ: closed form, no per-pair gathers
+    pair_radius = 0.5 * (radius[i] + radius[j])  # ρ_ij on both sides
+    if _uniform(covs):  # every robot has the same Σ: closed form (the midpoint plane), no per-pair gathers
         a, b = shared_covariance_separator(p[i], p[j], covs[0])
-        normals = np.concatenate([a, -a])
-        spread = buffer(normals, covs[0], 0.0, quantile)
+        spread = buffer(np.concatenate([a, -a]), covs[0], 0.0, quantile)
     else:
         a, b = separator_flat(p[i], covs[i], p[j], covs[j])
-        normals = np.concatenate([a, -a])
-        spread = buffer(normals, covs[owner], 0.0, quantile)
-    offsets = np.concatenate([b, -b]) - spread - radius[owner]
-    return owner, normals, offsets, Kind.ROBOT, np.concatenate([j, i])
+        b = disc_offsets(a, b, covs[i], covs[j], pair_radius)
+        spread = buffer(np.concatenate([a, -a]), covs[owner], 0.0, quantile)
+    offsets = np.concatenate([b, -b]) - spread - np.concatenate([pair_radius, pair_radius])
+    return owner, np.concatenate([a, -a]), offsets, Kind.ROBOT, np.concatenate([j, i])
+
+
+def disc_offsets(a: np.ndarray, b: np.ndarray, cov_i: np.ndarray, cov_j: np.ndarray, pair_radius: np.ndarray) -> np.ndarray:
+    """Appendix B's offsets ``b`` (robot i's side ``aᵀx ≤ b``) moved so that the two robots'
+    discs, not their centres, are misclassified alike: ``b + ρ_ij (σ_j − σ_i)/(σ_i + σ_j)``
+    with ``σ = √(aᵀΣa)`` (module docstring, "The plane's offset"); unchanged for equal σ."""
+    sigma_i, sigma_j = buffer(a, cov_i, 0.0, 1.0), buffer(a, cov_j, 0.0, 1.0)
+    total = sigma_i + sigma_j
+    return b + np.where(total > 0, pair_radius * (sigma_j - sigma_i) / np.where(total > 0, total, 1.0), 0.0)
 
 
 def _uniform(covs: np.ndarray) -> bool:
@@ -372,22 +446,29 @@ def cell_from_view(
     quantile: float,
     geometry: CellGeometry,
     local_box: float,
+    neighbour_radii: float | np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """One robot's cell from its own local view only (reference for the batch builder).
 
-    The view is what the robot sees: its estimate and covariance, and the estimates and
-    covariances of the neighbours inside its local box (others are ignored here too).
-    Returns ``(A, b, kind)`` of the valid constraints.
+    The view is what the robot sees: its estimate, covariance and radius, and the
+    estimates, covariances and radii (``neighbour_radii``: one or one per neighbour;
+    ``None``: the robot's own) of the neighbours inside its local box (others are ignored
+    here too). Each neighbour row keeps the pair's mean radius ``(r_i + r_j)/2`` (module
+    docstring). Returns ``(A, b, kind)`` of the valid constraints.
     """
     p = np.asarray(ego_estimate, float)
     nb = np.asarray(neighbour_estimates, float).reshape(-1, p.shape[0])
     ncov = np.asarray(neighbour_covs, float).reshape(-1, p.shape[0], p.shape[0])
+    nradius = np.broadcast_to(np.asarray(ego_radius if neighbour_radii is None else neighbour_radii, float), (len(nb),))
     keep = np.all(np.abs(nb - p) <= local_box, axis=1)
-    nb, ncov = nb[keep], ncov[keep]
+    nb, ncov, nradius = nb[keep], ncov[keep], nradius[keep]
     rows_a, rows_b, kinds = [], [], []
     if len(nb):
-        a, b = separator_flat(np.repeat(p[None], len(nb), 0), np.repeat(ego_cov[None], len(nb), 0), nb, ncov)
-        rows_a.append(a), rows_b.append(b - buffer(a, ego_cov, ego_radius, quantile)), kinds.append(np.full(len(a), Kind.ROBOT))
+        ego_covs = np.repeat(np.asarray(ego_cov, float)[None], len(nb), 0)
+        a, b = separator_flat(np.repeat(p[None], len(nb), 0), ego_covs, nb, ncov)
+        pair_radius = 0.5 * (ego_radius + nradius)
+        b = disc_offsets(a, b, ego_covs, ncov, pair_radius)
+        rows_a.append(a), rows_b.append(b - buffer(a, ego_cov, 0.0, quantile) - pair_radius), kinds.append(np.full(len(a), Kind.ROBOT))
     ego, ego_covs, ego_radii = p[None], np.asarray(ego_cov, float)[None], np.array([ego_radius])
     for rows in (_obstacle_rows(ego, ego_covs, ego_radii, quantile, geometry.obstacles, local_box),
                  _wall_rows(ego, ego_covs, ego_radii, quantile, geometry, local_box)):

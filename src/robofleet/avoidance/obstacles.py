@@ -9,7 +9,18 @@ polygon grown by that ball (exactly; we do not over-approximate by pushing faces
 The max-margin plane between the robot estimate ``q`` and the grown polygon has normal
 ``n = (q − c)/‖q − c‖`` (``c`` the closest point of the polygon to ``q``); shifted to touch
 the shadow it is ``n·x = n·c + r``. Back in world coordinates the robot's side is
-``aᵀp ≤ b`` with ``a = −Wᵀn``, ``b = −(n·c + r)``, then normalised.
+``aᵀp ≤ b`` with ``a = −Wᵀn``, ``b = −(h(n) + r)``, then normalised, where
+``h(n) = max_v n·v`` is the polygon's support in direction ``n`` (``= n·c`` for the
+max-margin normal).
+
+Estimates on the boundary or inside. When ``q`` lies on the polygon (a vertex, an edge)
+or inside it, ``q − c`` gives no direction; ``n`` is then the outward normal of the face
+whose line ``q`` is farthest beyond (the least negative signed distance: an edge through
+``q`` on the boundary, the nearest edge inside), and the robot's side is beyond that face
+grown by ``r``: its cell lies outside the obstacle, so the filtered step heads out.
+Any unit ``n`` gives a plane that keeps the whole shadow on the far side, because the
+offset is the support ``h(n) + r`` of the grown polygon (``c ∈ Ô`` and the ``r``-ball);
+the choice of ``n`` only decides how much room the robot gets.
 """
 
 from __future__ import annotations
@@ -88,15 +99,30 @@ def obstacle_planes(points: np.ndarray, obstacles: ObstacleSet, index: np.ndarra
     q = np.einsum("rij,rj->ri", w, points)
     verts = np.einsum("rij,rvj->rvi", w, obstacles.vertices[index])
     start, end = verts, np.roll(verts, -1, axis=1)
-    closest = _closest_on_boundary(q, start, end)
-    offset = q - closest
-    dist = np.linalg.norm(offset, axis=-1)
-    inside = _inside_convex(q, start, end)
-    n = np.where(inside[:, None], -offset, offset) / np.maximum(dist, 1e-300)[:, None]
+    gap = q - _closest_on_boundary(q, start, end)
+    dist = np.hypot(gap[:, 0], gap[:, 1])
+    apart = ~_inside_convex(q, start, end) & (dist > SEPARATION_TOL * (1.0 + np.abs(q).max(axis=1)))
+    n = np.where(apart[:, None], gap / np.where(apart, dist, 1.0)[:, None], _face_normal(q, start, end))
+    support = np.einsum("rvd,rd->rv", verts, n).max(axis=1)
     a = -np.einsum("rji,rj->ri", w, n)  # -Wᵀ n
-    b = -(np.einsum("ri,ri->r", n, closest) + obstacles.shadow_radius[index])
-    norm = np.linalg.norm(a, axis=-1)
+    b = -(support + obstacles.shadow_radius[index])
+    norm = np.hypot(a[:, 0], a[:, 1])
     return a / norm[:, None], b / norm
+
+
+SEPARATION_TOL = 1e-12
+"""Relative distance below which an estimate counts as on the obstacle's boundary (its
+direction from the closest point is then rounding noise)."""
+
+
+def _face_normal(q, start, end):
+    """Outward unit normal ``(R, 2)`` of the face of each counter-clockwise polygon whose
+    line ``q`` lies farthest beyond (zero-length padding edges excluded)."""
+    edge = end - start
+    length = np.hypot(edge[..., 0], edge[..., 1])
+    normal = np.stack([edge[..., 1], -edge[..., 0]], axis=-1) / np.where(length > 0, length, 1.0)[..., None]
+    beyond = np.where(length > 0, np.einsum("rvd,rvd->rv", normal, q[:, None] - start), -np.inf)
+    return normal[np.arange(len(q)), np.argmax(beyond, axis=1)]
 
 
 def _closest_on_boundary(q, start, end):
@@ -122,5 +148,5 @@ def wall_planes(bounds: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     start, end = geometry.polygon_edges(geometry.ensure_ccw(bounds))
     edge = end - start
     a = np.stack([edge[:, 1], -edge[:, 0]], axis=-1)
-    a /= np.linalg.norm(a, axis=-1, keepdims=True)
+    a /= np.hypot(a[:, 0], a[:, 1])[:, None]
     return a, np.einsum("kd,kd->k", a, start)

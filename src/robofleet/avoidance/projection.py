@@ -32,6 +32,11 @@ from .cell import Cells
 from .kernels import use_parallel
 
 FEAS_TOL = 1e-9
+ROUNDING = 1e-14
+"""A constraint ``aᵀx ≤ b`` counts as met when ``aᵀx − b ≤ FEAS_TOL + ROUNDING (|a_0 x_0| +
+|a_1 x_1| + |b|)``: 1e-9 m, plus the rounding error of the candidate and of the test,
+which only matters for points or offsets far beyond metres (goals 1e50 m away, buffers
+of covariances of 1e300)."""
 
 
 @dataclass(frozen=True)
@@ -64,10 +69,17 @@ def project_onto_cells(goals: np.ndarray, cells: Cells) -> Projection:
     return Projection(point, empty, active)
 
 
+@numba.njit(cache=True, inline="always")
+def _excess(x0, x1, A, b, i, k):
+    """How far ``x`` violates row ``k`` beyond the tolerance (> 0: violated; see :data:`ROUNDING`)."""
+    p0, p1 = A[i, k, 0] * x0, A[i, k, 1] * x1
+    return p0 + p1 - b[i, k] - (FEAS_TOL + ROUNDING * (abs(p0) + abs(p1) + abs(b[i, k])))
+
+
 @numba.njit(cache=True)
 def _feasible(x0, x1, A, b, valid, i):
     for k in range(A.shape[1]):
-        if valid[i, k] and A[i, k, 0] * x0 + A[i, k, 1] * x1 > b[i, k] + FEAS_TOL:
+        if valid[i, k] and _excess(x0, x1, A, b, i, k) > 0:
             return False
     return True
 
@@ -85,28 +97,28 @@ def _project_parallel(goals, A, b, valid, point, empty, active):
 
 @numba.njit(cache=True)
 def _project_range(lo, hi, goals, A, b, valid, point, empty, active):
-    slack = np.empty(A.shape[1])
+    slack, violated = np.empty(A.shape[1]), np.empty(A.shape[1], np.bool_)
     for i in range(lo, hi):
-        _project_one(i, goals, A, b, valid, point, empty, active, slack)
+        _project_one(i, goals, A, b, valid, point, empty, active, slack, violated)
 
 
 @numba.njit(cache=True, inline="always")
-def _project_one(i, goals, A, b, valid, point, empty, active, slack):
+def _project_one(i, goals, A, b, valid, point, empty, active, slack, violated):
     """Steps 1–4 of the module docstring for robot ``i``."""
     m = A.shape[1]
     g0, g1 = goals[i, 0], goals[i, 1]
     any_violated = False
     for k in range(m):
         slack[k] = A[i, k, 0] * g0 + A[i, k, 1] * g1 - b[i, k]
-        if valid[i, k] and slack[k] > FEAS_TOL:
-            any_violated = True
+        violated[k] = valid[i, k] and _excess(g0, g1, A, b, i, k) > 0
+        any_violated |= violated[k]
     point[i, 0], point[i, 1] = g0, g1
     if not any_violated:
         return
     best = np.inf
     # step 2: edge candidates of violated constraints (any feasible one is optimal)
     for k in range(m):
-        if valid[i, k] and slack[k] > FEAS_TOL:
+        if violated[k]:
             x0, x1 = g0 - slack[k] * A[i, k, 0], g1 - slack[k] * A[i, k, 1]
             if slack[k] < best and _feasible(x0, x1, A, b, valid, i):
                 best = slack[k]
@@ -116,7 +128,7 @@ def _project_one(i, goals, A, b, valid, point, empty, active, slack):
         return
     # step 3: vertices pairing a violated constraint with any other, with λ ≥ 0
     for k in range(m):
-        if not (valid[i, k] and slack[k] > FEAS_TOL):
+        if not violated[k]:
             continue
         ak0, ak1, bk = A[i, k, 0], A[i, k, 1], b[i, k]
         for j in range(m):

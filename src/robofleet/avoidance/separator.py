@@ -19,9 +19,19 @@ bracket or the residual is below tolerance. Equal covariances (the common case) 
 deterministic BVC) are handled by adding ``λ I`` with a tiny ``λ`` relative to the pair's
 scale, which selects the limit of the formulas: for ``Σ_i = Σ_j = 0`` the perpendicular
 bisector.
+
+Scale: the plane does not change when ``p̂_ij`` or both covariances are multiplied by a
+positive factor (``t`` solves a homogeneous equation, ``a`` only sets a direction, and
+``b`` scales with ``a``). Every formula here therefore works on ``p̂_ij`` and ``Σ``
+multiplied by powers of two that bring their largest entries into ``[½, 1)``
+(:func:`power_of_two_scale`): exact in floating point (the result is bit for bit the
+unscaled one whenever that one neither overflows nor underflows), and free of overflow and
+underflow for estimates ``1e-300`` apart, ``1e20`` m away or covariances of ``1e300``.
 """
 
 from __future__ import annotations
+
+import math
 
 import numba
 import numpy as np
@@ -82,14 +92,27 @@ def gaussian_separator(mean_i: np.ndarray, cov_i: np.ndarray, mean_j: np.ndarray
 
 
 def as_float_array(value: object, name: str) -> np.ndarray:
-    """``value`` as a finite float array, or a :class:`ConfigError` naming ``name``."""
-    try:
-        array = np.asarray(value, dtype=float)
-    except (TypeError, ValueError):
-        raise ConfigError(f"{name}: expected an array of numbers, received {short_repr(value)}") from None
+    """``value`` as a finite float array, or a :class:`ConfigError` naming ``name`` (real
+    numbers only: ``None``, booleans, complex numbers and text are refused)."""
+    array, refused = _real_array(value)
+    if array is None:
+        raise ConfigError(f"{name}: expected an array of numbers (real ones), received {refused}{short_repr(value)}")
     if not np.all(np.isfinite(array)):
         raise ConfigError(f"{name}: expected finite numbers, received NaN or infinite entries ({short_repr(value)})")
     return array
+
+
+def _real_array(value: object) -> tuple[np.ndarray | None, str]:
+    """``(value as a float array, "")``, or ``(None, what it holds)`` when it is not real numbers."""
+    try:
+        kind = np.asarray(value).dtype.kind if value is not None else "O"
+        if kind in "bc":
+            return None, {"b": "booleans ", "c": "complex numbers "}[kind]
+        if kind in "iufO" and value is not None:
+            return np.asarray(value, dtype=float), ""
+    except (TypeError, ValueError):
+        pass
+    return None, ""
 
 
 def check_shapes(mean_i: np.ndarray, cov_i: np.ndarray, mean_j: np.ndarray, cov_j: np.ndarray) -> int:
@@ -112,17 +135,33 @@ def check_covariance(cov: np.ndarray, name: str) -> None:
         raise ConfigError(f"{name}: expected positive semi-definite covariance matrices (eigenvalues ≥ 0), received {short_repr(cov.tolist())}")
 
 
+def power_of_two_scale(values: np.ndarray, axes: tuple[int, ...]) -> np.ndarray:
+    """Per leading index, the exponent ``e`` with ``max |values| · 2^-e ∈ [½, 1)`` over
+    ``axes`` (0 where all are zero): multiplying by ``2^-e`` is exact."""
+    return np.frexp(np.abs(values).max(axis=axes, initial=0.0))[1]
+
+
+def scaled(values: np.ndarray, exponent: np.ndarray) -> np.ndarray:
+    """``values · 2^-exponent`` with ``exponent`` broadcast over the trailing axes of ``values``."""
+    return np.ldexp(values, -exponent.reshape(exponent.shape + (1,) * (values.ndim - exponent.ndim)))
+
+
 def separator_flat(mi: np.ndarray, ci: np.ndarray, mj: np.ndarray, cj: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`gaussian_separator` on flat arrays ``(K, d)`` and ``(K, d, d)`` (no broadcasting)."""
-    ci, cj = _regularise(ci, cj)
-    diff = mj - mi
+    """:func:`gaussian_separator` on flat arrays ``(K, d)`` and ``(K, d, d)`` (no broadcasting).
+
+    Works on ``p̂_ij · 2^-m`` and ``Σ · 2^-k`` (module docstring, "Scale"): with ``a'`` the
+    normal of the scaled pair, ``a = 2^(m−k) a'`` and ``b = (a'ᵀp̂_i + 2^m t a'ᵀΣ'_i a') / ‖a'‖``."""
+    m = power_of_two_scale(mj - mi, (1,))
+    k = np.maximum(power_of_two_scale(ci, (1, 2)), power_of_two_scale(cj, (1, 2)))
+    diff = scaled(mj - mi, m)
+    ci, cj = _regularise(scaled(ci, k), scaled(cj, k))
     same = np.all((ci == cj).reshape(len(ci), ci.shape[-1] ** 2), axis=1)
     t = np.full(len(diff), 0.5)  # F(1/2) = 0 exactly when Σ_i = Σ_j
     differ = np.flatnonzero(~same)
     if len(differ):
         t[differ] = solve_t(diff[differ], ci[differ], cj[differ])
     a = _solve(t[:, None, None] * ci + (1.0 - t)[:, None, None] * cj, diff)
-    b = np.einsum("kd,kd->k", a, mi) + t * _quad(a, ci)
+    b = np.einsum("kd,kd->k", a, mi) + np.ldexp(t * _quad(a, ci), m)
     norm = np.linalg.norm(a, axis=-1)
     return a / norm[:, None], b / norm
 
@@ -133,11 +172,13 @@ def shared_covariance_separator(mi: np.ndarray, mj: np.ndarray, cov: np.ndarray)
     ``Σ_i = Σ_j = Σ`` gives ``F(½) = 0``, so ``a = Σ⁻¹(p̂_j − p̂_i)`` and
     ``b = aᵀ(p̂_i + p̂_j)/2`` (normalised). ``Σ = 0`` is the deterministic BVC limit
     ``a ∝ p̂_j − p̂_i``; a singular ``Σ ≠ 0`` is regularised as in :func:`separator_flat`.
+    ``p̂_j − p̂_i`` and Σ are scaled by powers of two first (module docstring, "Scale").
     O(K d) for K pairs.
     """
-    diff = mj - mi
+    diff = scaled(mj - mi, power_of_two_scale(mj - mi, (1,)))
     if np.any(cov):
-        reg, _ = _regularise(cov[None], cov[None])
+        unit = scaled(cov, power_of_two_scale(cov, (0, 1)))
+        reg, _ = _regularise(unit[None], unit[None])
         a = np.linalg.solve(reg[0], diff.T).T
     else:
         a = diff
@@ -158,10 +199,12 @@ def separator_mode(cov: np.ndarray, pairs: int = 2) -> tuple[int, np.ndarray]:
 
     A diagonal Σ is applied as :func:`shared_covariance_separator`'s LU solve rounds it:
     by the reciprocal of the diagonal for two or more right-hand sides, by division for
-    ``pairs == 1`` (LAPACK's one-column path), so both forms give the same bits."""
+    ``pairs == 1`` (LAPACK's one-column path), so both forms give the same bits. Σ is
+    scaled by a power of two first, as there (module docstring, "Scale")."""
     if not np.any(cov):
         return SHARED_ZERO, np.zeros(4)
-    reg = _regularise(cov[None], cov[None])[0][0]
+    unit = scaled(cov, power_of_two_scale(cov, (0, 1)))
+    reg = _regularise(unit[None], unit[None])[0][0]
     if reg[0, 1] == 0.0 and reg[1, 0] == 0.0:
         if pairs == 1:
             return SHARED_DIVIDE, np.array([reg[0, 0], reg[1, 1], 0.0, 0.0])
@@ -176,11 +219,18 @@ def shared_separator_row(xi, yi, xj, yj, mode, solve):
 
     ``a = Σ⁻¹(p̂_j − p̂_i)`` — the reciprocal diagonal for a diagonal Σ, which is how the
     LU solve :func:`numpy.linalg.solve` of the vectorized form rounds too, else 2×2 LU with
-    partial pivoting — then ``b = aᵀ(p̂_i + p̂_j)/2``, both divided by ``‖a‖``. Every
+    partial pivoting — then ``b = aᵀ(p̂_i + p̂_j)/2``, both divided by ``‖a‖``;
+    ``p̂_j − p̂_i`` is first scaled by a power of two when its size is outside
+    ``(1e-150, 1e150)`` (module docstring, "Scale"; exact, so the bits are those of the
+    vectorized form, which always scales). Every
     operation is odd in ``p̂_j − p̂_i`` or symmetric in ``(i, j)``, so robot j's row for
     the same pair is exactly ``(−a, −b)`` (appendix B).
     """
     d0, d1 = xj - xi, yj - yi
+    size = max(abs(d0), abs(d1))
+    if not 1e-150 < size < 1e150:  # scale only where a square could leave the floating-point range (exact either way)
+        exponent = math.frexp(size)[1]
+        d0, d1 = math.ldexp(d0, -exponent), math.ldexp(d1, -exponent)
     if mode == SHARED_ZERO:
         a0, a1 = d0, d1
     elif mode == SHARED_DIAGONAL:
