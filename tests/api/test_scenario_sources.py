@@ -80,7 +80,7 @@ def bad_sources(tmp_path: Path, wanted: str) -> dict:
         "a list": ([1, 2], "[1, 2]"), "bytes": (b"avoidance/three_boxes", "b'avoidance/three_boxes'"),
         "an unknown name": ("avoidance/nope", "'avoidance/nope'"),
         "a missing file": (tmp_path / "missing.yaml", "No such file"),
-        "a directory": (tmp_path, "is a directory"),
+        "a directory": (tmp_path, "a directory ("),
         "a file that is not YAML": (write(tmp_path / "bad.yaml", "a: [1,\n"), "bad.yaml"),
         "a file that is not a mapping": (write(tmp_path / "list.yaml", "- 1\n"), "list"),
         "another family's name": (other, "of family"),

@@ -102,7 +102,7 @@ def resolve(ref: str | Path, kind: str = "scenarios", base: Path | None = None) 
         if is_file(candidate):
             return candidate
     if is_file(given, exists=True):
-        raise ScenarioError("", f"a {kind[:-1]} file", f"{given} is a directory", source=str(given))
+        raise ScenarioError("", f"a {kind[:-1]} file", f"a directory ({given})", source=str(given))
     try:
         return path(str(ref), kind)
     except ScenarioError:
