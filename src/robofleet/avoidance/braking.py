@@ -152,9 +152,9 @@ def braking_rule(position: np.ndarray, velocity: np.ndarray, target: np.ndarray,
     ----------
     position, velocity : (N, d) position estimates and velocities
     target : (N, d) projected goals ``g*`` (points of the cells)
-    A, b, valid : cells ``(N, M, d)``, ``(N, M)``, ``(N, M)``; the guarantee across steps
-        needs them built from the braking segments
-        (:func:`~.segment_cells.with_braking_segments`, module docstring)
+    A, b, valid : cells ``(N, M, d)``, ``(N, M)``, ``(N, M)``
+        The guarantee across steps needs them built from the braking segments
+        (:func:`~.segment_cells.with_braking_segments`, module docstring).
     params : ``a_max``, ``v_max``
     dt : control period
 

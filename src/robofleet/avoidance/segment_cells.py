@@ -180,9 +180,12 @@ def segment_polygon_planes(start: np.ndarray, end: np.ndarray, obstacles: Obstac
 
     Parameters
     ----------
-    start, end : (R, 2) the segments, one row per (robot, obstacle) pair
-    obstacles : the obstacles (whitening and shadow radius of appendix A)
-    index : (R,) obstacle of each row
+    start, end : numpy.ndarray
+        ``(R, 2)`` the segments, one row per (robot, obstacle) pair.
+    obstacles : ObstacleSet
+        The obstacles (whitening and shadow radius of appendix A).
+    index : numpy.ndarray
+        ``(R,)`` the obstacle of each row.
 
     Returns
     -------
@@ -368,12 +371,17 @@ def with_braking_segments(cells: Cells, starts: np.ndarray, ends: np.ndarray, co
 
     Parameters
     ----------
-    cells : the point cells of :func:`.cell.build_cells` (robot rows with ``source`` the
-        neighbour, obstacle rows with ``source`` the obstacle or box)
-    starts, ends : (N, d) the segments ``[p̂_i, stop_i]`` (``ends == starts`` for a point)
-    covs, radius, quantile : Σ_i, r_i and ``Φ⁻¹(√(1 − δ))``, as the cells were built with
-    obstacles : the 2-D obstacles as the cells saw them (shifted to their estimates)
-    boxes : 3-D boxes ``(centers, sizes, yaws, σ_o, ε)`` as the cells saw them (Σ_o = σ_o² I)
+    cells : Cells
+        The point cells of :func:`.cell.build_cells` (robot rows with ``source`` the
+        neighbour, obstacle rows with ``source`` the obstacle or box).
+    starts, ends : numpy.ndarray
+        ``(N, d)`` the segments ``[p̂_i, stop_i]`` (``ends == starts`` for a point).
+    covs, radius, quantile
+        Σ_i ``(N, d, d)``, r_i ``(N,)`` and ``Φ⁻¹(√(1 − δ))``, as the cells were built with.
+    obstacles : ObstacleSet, optional
+        The 2-D obstacles as the cells saw them (shifted to their estimates).
+    boxes : tuple, optional
+        3-D boxes ``(centers, sizes, yaws, σ_o, ε)`` as the cells saw them (Σ_o = σ_o² I).
     """
     moving = np.any(ends != starts, axis=1)
     if not moving.any():
