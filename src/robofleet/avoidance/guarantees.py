@@ -33,7 +33,7 @@ CONTAINMENT_TOL = 1e-9
 KEEPS_CELL = {
     ("single_integrator", "one_step"): "one-step controller: the straight step toward g* stays in the convex cell",
     ("single_integrator", "mpc"): "MPC: every predicted position in the cell, straight segments between them",
-    ("double_integrator", "one_step"): "braking rule (Sec. 5.2): an accepted step keeps its Bézier hull and braking segment in the cell",
+    ("double_integrator", "one_step"): "braking rule (Sec. 5.2) on cells built from the braking segments: an accepted step keeps its Bézier hull and next braking segment in the cell",
 }
 """Team kinds whose controller keeps each robot in its convex cell, and why."""
 LEAVES_CELL = {

@@ -16,7 +16,8 @@ Methods share this code path and differ only in what the cells use (:class:`Meth
 
 Controllers, per team: single integrators — the one-step controller with the deadlock
 heuristic of appendix C (:mod:`.controller`); double integrators — the braking rule
-(Sec. 5.2, :mod:`.braking`); differential-drive robots — three projections (Sec. 5.3,
+(Sec. 5.2, :mod:`.braking`), whose robots' cell rows are built from their braking segments
+(:mod:`.segment_cells`, :meth:`World.braking_stops`); differential-drive robots — three projections (Sec. 5.3,
 :mod:`.diff_drive`); quadrotors, and any model with ``controller: mpc`` — the B-UAVC MPC
 (Sec. 5.4, :mod:`.mpc`).
 
@@ -49,7 +50,7 @@ from ..dynamics import double_integrator as di
 from ..dynamics import quadrotor as quad
 from ..dynamics import single_integrator
 from ..dynamics import unicycle as uni
-from .braking import braking_control, braking_rule
+from .braking import braking_control, braking_rule, stopping_point
 from .buffer import buffer, confidence_quantile, shadow_epsilon
 from .cell import CellGeometry, Cells, Kind, build_cells
 from .cell3d import (
@@ -73,6 +74,7 @@ from .navigation import Navigation, Roadmap
 from .obstacles import ObstacleSet, wall_planes
 from .orca import orca_velocities, preferred_velocities
 from .projection import project_onto_cells
+from .segment_cells import with_braking_segments
 from .spec import Space3DSpec, Spec, TeamSpec, initial_layout
 
 RECORD_CELLS_MAX_ROBOTS = 64
@@ -214,17 +216,27 @@ class CellModel:
     boxes: BoxObstacles | None = None
     separator_covs: np.ndarray | None = None
 
-    def cells(self, estimates: np.ndarray, obstacle_shift: np.ndarray) -> Cells:
+    def cells(self, estimates: np.ndarray, obstacle_shift: np.ndarray, stops: np.ndarray | None = None) -> Cells:
         """The cells of all robots from their estimates ``(N, d)`` and the obstacles'
-        estimated displacements ``(O, d)``."""
+        estimated displacements ``(O, d)``; with ``stops`` ``(N, d)``, the braking rule's
+        stopping points, the rows of every robot whose stop differs from its estimate are
+        built from the braking segments ``[p̂_i, stop_i]`` (:mod:`.segment_cells`)."""
         if self.boxes is None:
             geometry = replace(self.geometry, obstacles=shifted(self.geometry.obstacles, obstacle_shift))
-            return build_cells(estimates, self.covs, self.radius, self.quantile, geometry, self.local_box)
+            cells = build_cells(estimates, self.covs, self.radius, self.quantile, geometry, self.local_box)
+            if stops is None:
+                return cells
+            return with_braking_segments(cells, estimates, stops, self.covs, self.radius, self.quantile, obstacles=geometry.obstacles)
         if self.separator_covs is None:
             cells = build_cells(estimates, self.covs, self.radius, self.quantile, self.geometry, self.local_box)
         else:
             cells = self.rebuffered(build_cells(estimates, self.separator_covs, self.radius, self.quantile, self.geometry, self.local_box))
-        return cells if self.boxes.count == 0 else self.with_box_rows(cells, estimates, obstacle_shift)
+        cells = cells if self.boxes.count == 0 else self.with_box_rows(cells, estimates, obstacle_shift)
+        if stops is None:
+            return cells
+        b, sigma_o = self.boxes, float(np.sqrt(self.boxes.cov[0, 0]))  # Σ_o = σ_o² I in every 3-D scenario
+        return with_braking_segments(cells, estimates, stops, self.covs, self.radius, self.quantile,
+                                     boxes=(b.centers + obstacle_shift, b.sizes, b.yaws, sigma_o, b.epsilon))
 
     def rebuffered(self, cells: Cells) -> Cells:
         """``cells`` built with ``separator_covs``, their buffers replaced by those of Σ_i:
@@ -630,7 +642,7 @@ class World:
         if self.cell_model is None:
             cells, u = None, self.orca_control(estimates)
         else:
-            cells = self.cell_model.cells(estimates, obstacle_shift)
+            cells = self.cell_model.cells(estimates, obstacle_shift, self.braking_stops(estimates))
             u = np.zeros((self.n, self.control_width))
             for g in self.groups:
                 control, team_empty = self.team_control(g, estimates, self.team_cells(cells, g))
@@ -640,6 +652,18 @@ class World:
                     empty[g.index] = team_empty
                 u[g.index, : control.shape[1]] = control
         return cells, u, StepFlags(self.deadlock_counts() > before, empty & ~self.arrived(), None, empty, reported)
+
+    def braking_stops(self, estimates: np.ndarray) -> np.ndarray | None:
+        """Where each robot would come to rest under the braking rule's brake (:mod:`.braking`):
+        ``stop(p̂_i, v_i)`` for the double integrators it drives, the estimate for every other
+        robot; ``None`` without such a team (the cells then separate the estimates alone)."""
+        braking = [g for g in self.groups if g.kind == "double_integrator" and g.mpc is None]
+        if not braking:
+            return None
+        stops = estimates.copy()
+        for g in braking:
+            stops[g.index, :2] = stopping_point(estimates[g.index, :2], g.state[:, 2:], g.params.a_max, self.dt)
+        return stops
 
     def measure_premise(self, cells: Cells | None, estimates: np.ndarray, flags: StepFlags) -> StepFlags:
         """``flags`` completed with whether each estimate lay in its own cell (the premise of
