@@ -133,13 +133,11 @@ def separated_segments(rng, n, radius, polygons, half, at_rest):
 def test_separated_segments_lie_in_their_cells(seed):
     """The lemma of the braking rule's proof (step (a)): with Σ = Σ_o = 0, segments pairwise
     at least r_i + r_j apart, at least r_i from every obstacle and inside the walls lie in
-    their cells, and every pair's two rows are reciprocal. Radii per robot where every
-    robot has a segment; equal where some are points (the rows of two points are the
-    point cells' own)."""
+    their cells, and every pair's two rows are reciprocal. Radii are drawn per robot."""
     rng = np.random.default_rng(seed)
     half, n = 3.0, 14
     points = seed % 2 == 1
-    radius = np.full(n, rng.uniform(0.1, 0.3)) if points else rng.uniform(0.1, 0.3, n)
+    radius = rng.uniform(0.1, 0.3, n)
     polygons = [np.array(random_convex_polygon(rng, c, 0.5)) for c in ([-1.5, -1.5], [1.5, 0.5], [-0.5, 1.8])]
     starts, ends = separated_segments(rng, n, radius, polygons, half, 0.3 if points else 0.0)
     obstacles = ObstacleSet.build(polygons, np.zeros((len(polygons), 2, 2)), 0.0)
