@@ -28,6 +28,7 @@ import pandas as pd
 from ..core.config import read_mapping
 from ..core import arguments
 from ..core.errors import ConfigError
+from ..core.files import replacing, write_text
 from ..scenarios import catalogue
 from .executors import Executor, as_executor
 from .store import ERROR_COLUMN
@@ -186,6 +187,6 @@ def write_tables(tables: dict[str, pd.DataFrame], text: str, out: Path) -> list[
     out.mkdir(parents=True, exist_ok=True)
     blocks = [table.assign(table=name)[["table", *table.columns]] for name, table in tables.items()]
     summary = pd.concat(blocks, ignore_index=True) if blocks else pd.DataFrame()
-    summary.to_csv(out / "summary.csv", index=False)
-    (out / "table.md").write_text(text)
-    return [out / "summary.csv", out / "table.md"]
+    with replacing(out / "summary.csv") as temp:
+        summary.to_csv(temp, index=False)
+    return [out / "summary.csv", write_text(out / "table.md", text)]
