@@ -404,7 +404,7 @@ def replay_scene_of(trace, directory: Path, max_frames: int):
         raise ConfigError(f"{directory}: expected a complete {trace.family} trace, received one without {exc}") from None
     except (TypeError, ValueError, IndexError, AttributeError, ArithmeticError) as exc:
         # values of the right kinds that do not fit together (a trace edited by hand, or written before its schema was recorded)
-        raise ConfigError(f"{directory}: expected a {trace.family} trace whose fields fit together, received one its replay "
+        raise ConfigError(f"{directory}: expected trace fields that fit together, received a {trace.family} trace its replay "
                           f"cannot draw ({type(exc).__name__}: {one_line(exc)})") from None
 
 

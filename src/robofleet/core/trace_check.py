@@ -165,8 +165,8 @@ def check_event(event: Any, index: int, metadata: dict[str, Any], kinds: dict[st
     n_steps, n_robots = metadata.get("n_steps"), metadata.get("n_robots")
     step = event.get("step")
     if kind_of(step) != "integer" or step < 0 or (isinstance(n_steps, int) and step > n_steps):
-        upper = f" ≤ n_steps {n_steps}" if isinstance(n_steps, int) else ""
-        fail(where, f"{field}.step", f"an integer ≥ 0{upper}", step, received=None if "step" in event else "nothing")
+        bounds = f" in [0, {n_steps}] (n_steps)" if isinstance(n_steps, int) else " ≥ 0"
+        fail(where, f"{field}.step", f"an integer{bounds}", step, received=None if "step" in event else "nothing")
     if not isinstance(event.get("kind"), str) or not event["kind"]:
         fail(where, f"{field}.kind", "a non-empty string", event.get("kind"), received=None if "kind" in event else "nothing")
     if "robot" in event:
