@@ -106,6 +106,11 @@ def damages_of(directory: Path) -> dict[str, tuple[str, str, Damage]]:
         lambda d, a: d.__setitem__("events", [{"step": 0, "kind": "x", "robot": d["metadata"]["n_robots"]}]))
     add("schema removed", "trace.json", "schema", lambda d, a: d.pop("schema"))
     add("schema of another kind", "trace.json", "schema", lambda d, a: d.__setitem__("schema", [1]))
+    add("schema null", "trace.json", "schema", lambda d, a: d.__setitem__("schema", None))
+    add("a schema kind of another kind", "trace.json", "schema.metadata.seed", lambda d, a: d["schema"]["metadata"].__setitem__("seed", 5))
+    add("a schema event entry broken", "trace.json", "schema.events", lambda d, a: d["schema"]["events"].__setitem__("x", {"step": 5}))
+    add("a schema array entry broken", "trace.json", "schema.arrays.positions",
+        lambda d, a: d["schema"]["arrays"].__setitem__("positions", {"dtype": "float64", "shape": [-1]}))
     add("unknown version", "trace.json", "version", lambda d, a: d.__setitem__("version", 99))
     add("a negative seed", "trace.json", "metadata.seed", lambda d, a: d["metadata"].__setitem__("seed", -1))
     add("record_every zero", "trace.json", "metadata.record_every", lambda d, a: d["metadata"].__setitem__("record_every", 0))
@@ -212,3 +217,66 @@ def test_every_valid_trace_round_trips(saved):
         assert again.summary() == trace.summary() and again.events == trace.events
         for key, array in trace.arrays.items():
             np.testing.assert_array_equal(again.arrays[key], array)
+
+
+def random_value(rng):
+    return [None, True, -3, 2.5, "x", "__DATA__", [], [1, "a"], {"k": 1}, [[0.0, 1.0]], 10**30][rng.integers(11)]
+
+
+def mutate_document(doc, rng) -> None:
+    """Replace or remove one value at a random place of the document (any depth)."""
+    node, depth = doc, 0
+    while True:
+        keys = list(node) if isinstance(node, dict) else list(range(len(node)))
+        if not keys:
+            return
+        key = keys[rng.integers(len(keys))]
+        child = node[key]
+        if isinstance(child, (dict, list)) and child and rng.random() < 0.7 and depth < 6:
+            node, depth = child, depth + 1
+            continue
+        if isinstance(node, dict) and rng.random() < 0.3:
+            node.pop(key)
+        else:
+            node[key] = random_value(rng)
+        return
+
+
+def mutate_bytes(data: bytes, rng) -> bytes:
+    if rng.random() < 0.5:
+        return data[: rng.integers(len(data))]
+    flipped = bytearray(data)
+    for _ in range(rng.integers(1, 4)):
+        flipped[rng.integers(len(flipped))] ^= 1 << int(rng.integers(8))
+    return bytes(flipped)
+
+
+def test_random_damage_is_refused_in_one_line_or_read_and_viewed(saved, tmp_path, capsys):
+    """Seeded random damage anywhere in either file: Trace.load returns a trace or raises
+    one TraceError line, never another error; view of what loads is a page or one line."""
+    rng = np.random.default_rng(20)
+    outcomes = {"refused": 0, "loaded": 0}
+    for case in range(600):
+        family = list(saved)[case % len(saved)]
+        run = shutil.copytree(saved[family], tmp_path / str(case))
+        if rng.random() < 0.6:
+            doc = json.loads((run / "trace.json").read_text())
+            mutate_document(doc, rng)
+            (run / "trace.json").write_text(json.dumps(doc))
+        else:
+            name = ["trace.json", "trace.npz"][rng.integers(2)]
+            (run / name).write_bytes(mutate_bytes((run / name).read_bytes(), rng))
+        try:
+            Trace.load(run)
+        except TraceError as exc:
+            assert "\n" not in str(exc) and str(run) in str(exc), str(exc)
+            outcomes["refused"] += 1
+            continue
+        outcomes["loaded"] += 1
+        try:
+            main(["view", str(run), "--no-open"])
+        except SystemExit as stop:
+            err = capsys.readouterr().err
+            assert stop.code == 2 and err.count("\n") == 1 and err.startswith("error: "), err
+        capsys.readouterr()
+    assert outcomes["refused"] > 300 and outcomes["loaded"] > 0, outcomes

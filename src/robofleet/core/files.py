@@ -12,12 +12,14 @@ Every file robofleet writes goes through this module:
   inside it, and moved in only once all are complete, the files they replace set aside
   first and put back if a move fails.
 
-Why nothing is lost: until the final rename the target (or the set) is untouched, so a
-process stopped at any moment (Ctrl-C, a crash, a full disk) leaves either the earlier
-file(s) or the complete new one(s), plus at most a hidden temporary that readers ignore
-and that is removed unless the process is killed outright. The renames of a set run under
-:func:`deferred_interrupts`, so Ctrl-C cannot stop them halfway: it takes effect (as
-``KeyboardInterrupt``) right after the set is in place.
+Why nothing is lost: until the final rename a target is untouched, and a rename within a
+directory is atomic, so a writer stopped at any moment (Ctrl-C, an error, a full disk,
+a crash) leaves each file either as it was or complete, plus at most a hidden temporary
+that readers ignore (removed unless the process is killed outright). A set is swapped by
+renames run under :func:`deferred_interrupts`, so Ctrl-C cannot stop them halfway (it
+takes effect, as ``KeyboardInterrupt``, right after the set is in place), and an error
+during them puts the earlier files back; only a crash of the whole process during those
+few renames can leave part of the earlier set in the hidden staging directory.
 """
 
 from __future__ import annotations
@@ -181,12 +183,13 @@ def missing_folders(directory: Path) -> list[Path]:
 def deferred_interrupts() -> Iterator[None]:
     """Hold Ctrl-C (SIGINT) back for the duration of the block and deliver it after.
 
-    In the main thread only (the one Python delivers signals to); elsewhere the block
-    runs unchanged. A SIGINT received during the block is handed to the handler that was
-    in place before (by default: ``KeyboardInterrupt`` raised when the block ends).
+    In the main thread only (the one Python delivers signals to), and while the handler
+    in place is a Python one; otherwise the block runs unchanged. A SIGINT received
+    during the block is handed to the handler that was in place before (by default:
+    ``KeyboardInterrupt`` raised when the block ends).
     """
-    if threading.current_thread() is not threading.main_thread():
-        yield
+    if threading.current_thread() is not threading.main_thread() or signal.getsignal(signal.SIGINT) is None:
+        yield  # no Python handler to put back (one installed from C): leave signals alone
         return
     received: list[int] = []
     previous = signal.signal(signal.SIGINT, lambda signum, frame: received.append(signum))

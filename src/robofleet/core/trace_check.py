@@ -123,7 +123,7 @@ def check_document(doc: dict[str, Any], where: str) -> None:
         if name in metadata:
             check_core_value(metadata[name], f"metadata.{name}", kind, minimum, nullable, where)
     schema = doc.get("schema")
-    if schema is not None:
+    if schema is not None or doc.get("version", 0) >= 3:  # version 3 records its schema
         check_schema_shape(schema, where)
         check_values(metadata, schema["metadata"], "metadata", where)
         check_values(results, schema["results"], "results", where)
@@ -140,9 +140,17 @@ def check_core_value(value: Any, field: str, kind: str, minimum: int | None, nul
 
 
 def check_schema_shape(schema: Any, where: str) -> None:
-    """The schema itself: four objects of kinds (the arrays' entries with dtype and shape)."""
+    """The schema itself: kinds (strings) for metadata, results and each event kind's
+    fields, a dtype and a shape for each array."""
     if not isinstance(schema, dict) or any(not isinstance(schema.get(k), dict) for k in ("metadata", "results", "events", "arrays")):
         fail(where, "schema", "an object with metadata, results, events and arrays", schema)
+    for part in ("metadata", "results"):
+        for name, kind in schema[part].items():
+            if not isinstance(kind, str):
+                fail(where, f"schema.{part}.{name}", "a kind", kind)
+    for event_kind, fields in schema["events"].items():
+        if not isinstance(fields, dict) or any(not isinstance(kind, str) for kind in fields.values()):
+            fail(where, f"schema.events.{event_kind}", "an object of kinds", fields)
     for name, entry in schema["arrays"].items():
         if not (isinstance(entry, dict) and isinstance(entry.get("dtype"), str) and isinstance(entry.get("shape"), list)
                 and all(isinstance(n, int) and not isinstance(n, bool) and n >= 0 for n in entry["shape"])):
@@ -154,7 +162,7 @@ def check_values(values: dict[str, Any], kinds: dict[str, Any], part: str, where
     for name, kind in kinds.items():
         if name not in values:
             fail(where, f"{part}.{name}", f"a value of kind {kind} (as written)", None, received="nothing")
-        if not isinstance(kind, str) or not accepts(kind, kind_of(values[name])):
+        if not accepts(kind, kind_of(values[name])):
             fail(where, f"{part}.{name}", f"a value of kind {kind} (as written)", values[name])
 
 
@@ -173,10 +181,7 @@ def check_event(event: Any, index: int, metadata: dict[str, Any], kinds: dict[st
         robot = event["robot"]
         if kind_of(robot) != "integer" or robot < 0 or (isinstance(n_robots, int) and robot >= n_robots):
             fail(where, f"{field}.robot", f"a robot index in [0, {n_robots})", robot)
-    fields = (kinds or {}).get(event["kind"])
-    if not isinstance(fields, dict):
-        return
-    for name, kind in fields.items():
+    for name, kind in (kinds or {}).get(event["kind"], {}).items():
         required = not kind.startswith(OPTIONAL)
         kind = kind.removeprefix(OPTIONAL)
         if name not in event:
