@@ -57,3 +57,20 @@ def test_the_recording_holds_every_layer_on_one_time_axis(traces, tmp_path, name
         assert "/world/obstacles/boxes" in entities
         first = np.array(rows[0])
         np.testing.assert_allclose(first, scene.positions[0], atol=1e-5)
+
+
+def test_a_recording_is_replaced_whole_and_only_if_robofleet_wrote_it(traces, tmp_path, capsys):
+    from robofleet.viz.replay.rerun_export import is_robofleet_recording
+
+    run = traces["search"].save(tmp_path / "run")
+    recording = tmp_path / "run.rrd"
+    for _ in range(2):  # the second time over robofleet's own recording: no --overwrite needed
+        main(["view", str(run), "--no-open", "--out", str(tmp_path / "page.html"), "--rerun", str(recording)])
+        assert is_robofleet_recording(recording) and read_back(recording)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["page.html", "run", "run.rrd"]  # no temporaries left
+    capsys.readouterr()
+    foreign = tmp_path / "other.rrd"
+    foreign.write_bytes(recording.read_bytes().replace(b"robofleet", b"elsewhere"))
+    with pytest.raises(SystemExit) as stop:
+        main(["view", str(run), "--no-open", "--out", str(tmp_path / "page.html"), "--rerun", str(foreign)])
+    assert stop.value.code == 2 and "--rerun" in capsys.readouterr().err

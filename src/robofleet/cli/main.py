@@ -22,7 +22,8 @@ from rich.console import Console
 
 from ..core.budget import MEMORY_BUDGET_VARIABLE, parse_size
 from ..core.config import read_mapping
-from ..core.errors import ConfigError, Interrupted, RobofleetError, short_repr
+from ..core.errors import ConfigError, Interrupted, RobofleetError, one_line, short_repr
+from ..core.files import Staging, is_temporary, staged_files, write_text
 from ..core.rng import resolve_seed
 from ..core.trace import dumps_json
 from ..experiments import reproduce as run_reproduction
@@ -81,11 +82,17 @@ def run_command(
     out: OutOption = None,
     animate: Annotated[bool, typer.Option("--animate", help="Also write animation.gif.")] = False,
     plot: Annotated[bool, typer.Option("--plot", help="Also write plot.png.")] = False,
-    overwrite: Annotated[bool, typer.Option("--overwrite", help="Replace an earlier run's files in --out.")] = False,
+    overwrite: Annotated[bool, typer.Option("--overwrite", help="Replace an earlier run's files in --out, once the new run is complete.")] = False,
     quiet: QuietOption = False,
     memory_budget: MemoryBudgetOption = None,
 ) -> None:
-    """Simulate a scenario; write trace.npz, trace.json, summary.json (and plot.png, animation.gif)."""
+    """Simulate a scenario; write trace.npz, trace.json, summary.json (and plot.png, animation.gif).
+
+    The run's files replace an earlier run's (:data:`RUN_FILES`) together, once all three
+    are complete (:func:`~robofleet.core.files.staged_files`); the figures follow, each
+    replacing nothing until complete. Ctrl-C at any moment leaves the earlier run or the
+    new one, and its line names the files on disk (:func:`what_is_on_disk`).
+    """
     use_memory_budget(memory_budget)
     if is_sweep(scenario):
         raise ConfigError(f"SCENARIO: expected a scenario file, received the sweep {scenario} (run it with `robofleet sweep`)")
@@ -93,31 +100,51 @@ def run_command(
     family = family_of(spec)
     seed = resolve_seed(seed, "--seed")
     out_dir = out if out is not None else Path("runs") / f"{spec.scenario_name or family.name}-seed{seed}"
-    prepare_run_directory(out_dir, overwrite)
-    trace = simulate(spec, seed=seed, progress=not quiet)
-    trace.save(out_dir)
-    summary = trace.summary()
-    (out_dir / "summary.json").write_text(dumps_json(summary) + "\n")
-    written = ["trace.npz", "trace.json", "summary.json"]
-    if not quiet:
-        Console().print(key_value_table(summary, f"{spec.scenario_name} ({family.name}, seed {trace.seed})"))
-    if plot:
-        family.viz_module().plot_trace(trace, out_dir / "plot.png")
-        written.append("plot.png")
-    if animate:
-        family.viz_module().animate_trace(trace, out_dir / "animation.gif")
-        written.append("animation.gif")
-    typer.echo(f"wrote {out_dir}/ {{{', '.join(written)}}} (seed {trace.seed})")
+    check_run_directory(out_dir, overwrite)
+    wanted = [*RUN_FILES[:3], *(["plot.png"] if plot else []), *(["animation.gif"] if animate else [])]
+    staging = None
+    try:
+        trace = simulate(spec, seed=seed, progress=not quiet)
+        summary = trace.summary()
+        with staged_files(out_dir, RUN_FILES) as staging:
+            trace.save(staging.path)
+            write_text(staging.path / "summary.json", dumps_json(summary) + "\n")
+        if not quiet:
+            Console().print(key_value_table(summary, f"{spec.scenario_name} ({family.name}, seed {trace.seed})"))
+        if plot:
+            family.viz_module().plot_trace(trace, out_dir / "plot.png")
+        if animate:
+            family.viz_module().animate_trace(trace, out_dir / "animation.gif")
+    except KeyboardInterrupt:
+        raise Stopped(f"interrupted; {what_is_on_disk(out_dir, staging, seed, wanted)}") from None
+    except OSError as exc:  # a full disk, a folder made read-only meanwhile
+        raise ConfigError(f"--out: expected a writable directory, received {out_dir} ({exc.strerror or exc}); "
+                          f"{what_is_on_disk(out_dir, staging, seed, wanted)}") from None
+    typer.echo(f"wrote {out_dir}/ {{{', '.join(wanted)}}} (seed {trace.seed})")
 
 
 RUN_FILES = ("trace.npz", "trace.json", "summary.json", "plot.png", "animation.gif")
+"""The files of a run: a new run replaces all of an earlier run's (and no other file)."""
 
 
-def prepare_run_directory(out_dir: Path, overwrite: bool) -> None:
-    """Make ``out_dir`` ready for a run's files, before anything is computed.
+def what_is_on_disk(out_dir: Path, staging: Staging | None, seed: int, wanted: list[str]) -> str:
+    """Which run a stopped ``robofleet run`` left in ``out_dir`` (the earlier one or the new
+    one, as ``staging`` tells) and exactly which of its files are there."""
+    present = [name for name in RUN_FILES if (out_dir / name).is_file()]
+    if staging is not None and staging.moved:
+        missing = [name for name in wanted if name not in present]
+        return f"{out_dir}/ holds the new run (seed {seed}): {', '.join(present)}" + (f" ({', '.join(missing)} not written)" if missing else "")
+    if present:
+        return f"the new run was not written; {out_dir}/ holds the earlier run's files, unchanged: {', '.join(present)}"
+    return f"nothing was written ({out_dir} {'holds no run files' if out_dir.is_dir() else 'was not created'})"
 
-    A non-empty directory is refused unless ``overwrite``, which removes the files an
-    earlier run wrote (:data:`RUN_FILES`) and nothing else.
+
+def check_run_directory(out_dir: Path, overwrite: bool) -> None:
+    """Check, before anything is computed, that ``out_dir`` can take a run's files.
+
+    A directory holding files (but the temporaries of interrupted writes) is refused
+    unless ``overwrite``; nothing is removed here: the new run replaces the earlier run's
+    files (:data:`RUN_FILES`) only once it is complete.
 
     Raises
     ------
@@ -126,7 +153,8 @@ def prepare_run_directory(out_dir: Path, overwrite: bool) -> None:
     """
     try:
         blocking = next((p for p in (out_dir, *out_dir.parents) if p.exists() and not p.is_dir()), None)
-        present = sorted(p.name for p in out_dir.iterdir()) if out_dir.is_dir() and blocking is None else []
+        present = sorted(p.name for p in out_dir.iterdir() if not is_temporary(p)) if out_dir.is_dir() and blocking is None else []
+        writable = next(p for p in (out_dir, *out_dir.parents, Path.cwd()) if p.exists())
     except (OSError, ValueError) as exc:  # a name too long, a NUL byte, no permission
         raise ConfigError(f"--out: expected a usable directory path, received {short_repr(str(out_dir))} "
                           f"({getattr(exc, 'strerror', None) or exc})") from None
@@ -135,15 +163,8 @@ def prepare_run_directory(out_dir: Path, overwrite: bool) -> None:
     if present and not overwrite:
         shown = ", ".join(present[:4]) + (", ..." if len(present) > 4 else "")
         raise ConfigError(f"--out: expected a new or empty directory (or --overwrite), received {out_dir}, which holds {shown}")
-    for name in RUN_FILES:
-        (out_dir / name).unlink(missing_ok=True)
-    try:
-        out_dir.mkdir(parents=True, exist_ok=True)
-        probe = out_dir / f".write-test-{os.getpid()}"
-        probe.touch()
-        probe.unlink()
-    except OSError as exc:
-        raise ConfigError(f"--out: expected a writable directory, received {out_dir} ({exc.strerror})") from None
+    if not os.access(writable, os.W_OK | os.X_OK):
+        raise ConfigError(f"--out: expected a writable directory, received {out_dir} ({writable} is not writable)")
 
 
 @app.command("validate")
@@ -298,8 +319,14 @@ def view_command(
     rerun: Annotated[Path | None, typer.Option("--rerun", help="Also write a recording for the Rerun viewer (FILE.rrd; needs the rerun extra).")] = None,
     no_open: Annotated[bool, typer.Option("--no-open", help="Only write the file; do not open a browser.")] = False,
     max_frames: Annotated[int, typer.Option(min=2, help="Frames of the replay at most (longer runs show evenly spaced states).")] = MAX_FRAMES,
+    overwrite: Annotated[bool, typer.Option("--overwrite", help="Replace --out / --rerun files that robofleet did not write.")] = False,
 ) -> None:
-    """Write a self-contained HTML replay of a run (or one report of a reproduction) and open it."""
+    """Write a self-contained HTML replay of a run (or one report of a reproduction) and open it.
+
+    Writes only FILE.html (and FILE.rrd), so never a run's or a reproduction's own data; an
+    existing file is replaced only if robofleet wrote it (a page or a recording), or with
+    --overwrite; each file is replaced only once complete.
+    """
     from ..core.trace import Trace
     from ..viz.replay.page import open_in_browser, write_html
     from ..viz.replay.report import write_report
@@ -307,22 +334,65 @@ def view_command(
 
     target = locate(run)
     page = out if out is not None else target.default_output()
-    if rerun is not None and (target.kind != "run" or rerun.suffix != ".rrd"):
-        raise ConfigError(f"--rerun: expected a FILE.rrd for a run directory, received {rerun} for {target.kind} {target.directory}")
-    if target.kind == "reproduction":
-        write_report(target.directory, page)
-        written = [page]
-    else:
-        scene = replay_scene_of(Trace.load(target.directory), target.directory, max_frames)
-        written = []
-        if rerun is not None:
-            from ..viz.replay.rerun_export import write_rrd
+    check_view_outputs(page, rerun, target, overwrite)
+    outputs = [page] if rerun is None else [page, rerun]
+    before = {path: file_identity(path) for path in outputs}
+    try:
+        if target.kind == "reproduction":
+            write_report(target.directory, page)
+        else:
+            scene = replay_scene_of(Trace.load(target.directory), target.directory, max_frames)
+            write_html(scene, page)
+            if rerun is not None:
+                from ..viz.replay.rerun_export import write_rrd
 
-            written.append(write_rrd(scene, rerun))
-        written.insert(0, write_html(scene, page))
-    typer.echo("wrote " + ", ".join(str(p) for p in written))
+                write_rrd(scene, rerun)
+    except KeyboardInterrupt:
+        written = [str(path) for path in outputs if file_identity(path) != before[path]]
+        raise Stopped(f"interrupted; {'wrote ' + ', '.join(written) + ' only' if written else 'nothing was written'}") from None
+    typer.echo("wrote " + ", ".join(str(p) for p in outputs))
     if not no_open and not open_in_browser(page):
         typer.echo(f"no browser to open here; open {page.resolve().as_uri()}")
+
+
+PAGE_SUFFIXES = (".html", ".htm")
+
+
+def check_view_outputs(page: Path, rerun: Path | None, target, overwrite: bool) -> None:
+    """Refuse, before anything is written, outputs that could lose data: ``--out`` and
+    ``--rerun`` naming one file, a page that is no ``.html`` file (so never a run's trace or
+    summary, nor a reproduction's tables), a recording that is no ``.rrd`` file or of no run,
+    and an existing file robofleet did not write, unless ``overwrite``."""
+    from ..viz.replay.page import is_robofleet_page
+    from ..viz.replay.rerun_export import is_robofleet_recording
+
+    if rerun is not None and same_file(page, rerun):
+        raise ConfigError(f"--rerun: expected a file other than the page, received {rerun}, which is also the page (--out {page})")
+    if page.suffix.lower() not in PAGE_SUFFIXES:
+        raise ConfigError(f"--out: expected a FILE.html, received {page}")
+    if rerun is not None and (target.kind != "run" or rerun.suffix != ".rrd"):
+        raise ConfigError(f"--rerun: expected a FILE.rrd for a run directory, received {rerun} for {target.kind} {target.directory}")
+    for option, path, ours in (("--out", page, is_robofleet_page), ("--rerun", rerun, is_robofleet_recording)):
+        if path is not None and not overwrite and (path.exists() or path.is_symlink()) and not ours(path):
+            raise ConfigError(f"{option}: expected a new file or one robofleet wrote (or --overwrite), received {path}, "
+                              "which is another file")
+
+
+def file_identity(path: Path) -> tuple[int, int] | None:
+    """What tells a file replaced since (its inode and modification time), or ``None`` if absent."""
+    try:
+        status = path.stat()
+    except OSError:
+        return None
+    return status.st_ino, status.st_mtime_ns
+
+
+def same_file(a: Path, b: Path) -> bool:
+    """Whether two paths name the same file (after resolving links and ``..``)."""
+    try:
+        return a.resolve() == b.resolve()
+    except (OSError, RuntimeError):
+        return a.absolute() == b.absolute()
 
 
 def replay_scene_of(trace, directory: Path, max_frames: int):
@@ -333,8 +403,14 @@ def replay_scene_of(trace, directory: Path, max_frames: int):
         raise ConfigError(f"{directory / 'trace.json'}: family: expected one of {sorted(FAMILIES)}, received {trace.family!r}")
     try:
         return scene_builder(trace.family)(trace, max_frames=max_frames)
+    except RobofleetError:
+        raise
     except KeyError as exc:
         raise ConfigError(f"{directory}: expected a complete {trace.family} trace, received one without {exc}") from None
+    except (TypeError, ValueError, IndexError, AttributeError, ArithmeticError) as exc:
+        # values of the right kinds that do not fit together (a trace edited by hand, or written before its schema was recorded)
+        raise ConfigError(f"{directory}: expected trace fields that fit together, received a {trace.family} trace its replay "
+                          f"cannot draw ({type(exc).__name__}: {one_line(exc)})") from None
 
 
 def show_warning(message: Warning | str, category: type[Warning], filename: str, lineno: int, file: object = None,
@@ -399,8 +475,8 @@ def main(argv: list[str] | None = None) -> None:
             os.environ.pop(MEMORY_BUDGET_VARIABLE, None)
         else:
             os.environ[MEMORY_BUDGET_VARIABLE] = budget
-    if code == INTERRUPTED:  # typer's answer to Ctrl-C outside a sweep
-        typer.echo("interrupted; nothing of the interrupted run was written", err=True)
+    if code == INTERRUPTED:  # typer's answer to Ctrl-C in a command that does not say more
+        typer.echo("interrupted; every file written so far is complete (none is left half-written)", err=True)
     if isinstance(code, int) and code:
         sys.exit(code)
 

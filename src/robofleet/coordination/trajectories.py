@@ -17,6 +17,7 @@ import numpy as np
 from ..core import arguments
 from ..core.config import MAX_MAGNITUDE
 from ..core.errors import ScenarioError
+from ..core.files import replacing
 
 
 @dataclass(frozen=True)
@@ -255,10 +256,10 @@ def _csv_paths(table: np.ndarray, source: str) -> list[np.ndarray]:
 def save_trajectories(traj: Trajectories, path: str | Path) -> Path:
     """Write a plan as ``.npz`` (``positions`` + ``lengths``) or ``.csv`` (``robot,step,x,y``)."""
     p = Path(path)
-    p.parent.mkdir(parents=True, exist_ok=True)
-    if p.suffix.lower() == ".npz":
-        np.savez(p, positions=traj.positions, lengths=traj.lengths)
-    else:
-        rows = [(i, k, *traj.positions[i, k]) for i in range(traj.n_robots) for k in range(int(traj.lengths[i]) + 1)]
-        np.savetxt(p, np.array(rows), delimiter=",", header="robot,step,x,y", comments="", fmt=["%d", "%d", "%.9g", "%.9g"])
+    with replacing(p) as temp:
+        if p.suffix.lower() == ".npz":
+            np.savez(temp, positions=traj.positions, lengths=traj.lengths)
+        else:
+            rows = [(i, k, *traj.positions[i, k]) for i in range(traj.n_robots) for k in range(int(traj.lengths[i]) + 1)]
+            np.savetxt(temp, np.array(rows), delimiter=",", header="robot,step,x,y", comments="", fmt=["%d", "%d", "%.9g", "%.9g"])
     return p

@@ -75,6 +75,12 @@ class Described(str):
         return str(self)
 
 
+def one_line(exc: BaseException, limit: int = 160) -> str:
+    """An exception's message on one line, cut to ``limit`` characters (its type's name if it has none)."""
+    text = " ".join(str(exc).split()) or type(exc).__name__
+    return text if len(text) <= limit else text[: limit - 3] + "..."
+
+
 def short_repr(value: Any, limit: int = 80) -> str:
     """``repr(value)`` cut to ``limit`` characters (twice that for a :class:`Described`), on one line."""
     limit = 2 * limit if isinstance(value, Described) else limit

@@ -14,18 +14,24 @@ from __future__ import annotations
 
 import json
 import zipfile
+import zlib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from .errors import RobofleetError, TraceError, short_repr
+from .errors import RobofleetError, TraceError, one_line, short_repr
+from .files import staged_files
+from .trace_check import check_arrays, check_document, schema_of
 from .workspace import Region, Workspace
 
-TRACE_VERSION = 2
+TRACE_VERSION = 3
+READABLE_VERSIONS = (2, 3)
+"""Versions :meth:`Trace.load` reads: 3 records the schema of what it wrote, 2 did not."""
 TRACE_KEYS = ("family", "events", "metadata", "results")
-"""The keys of ``trace.json`` besides ``version`` and ``workspace``."""
+"""The keys of ``trace.json`` besides ``version``, ``workspace`` and ``schema``."""
+TRACE_FILES = ("trace.npz", "trace.json")
 CORE_SUMMARY_KEYS = ("family", "scenario", "seed", "success", "n_robots", "n_steps", "wall_seconds")
 """The keys every family's summary starts with."""
 
@@ -85,50 +91,74 @@ class Trace:
         return to_plain({**core, **{k: v for k, v in self.results.items() if k not in core}})
 
     def save(self, directory: str | Path) -> Path:
-        """Write ``trace.npz`` and ``trace.json`` into ``directory`` (created if needed)."""
+        """Write ``trace.npz`` and ``trace.json`` into ``directory`` (created if needed).
+
+        Both files replace an earlier trace's together (:func:`~robofleet.core.files.staged_files`):
+        stopped at any moment, the directory holds the earlier trace or this one, complete.
+        ``trace.json`` records the schema of what was written (see :mod:`~robofleet.core.trace_check`).
+        """
         d = Path(directory)
-        d.mkdir(parents=True, exist_ok=True)
-        np.savez_compressed(d / "trace.npz", **self.arrays)
-        doc = {
-            "version": TRACE_VERSION,
-            "family": self.family,
-            "events": self.events,
-            "metadata": self.metadata,
-            "results": self.results,
-            "workspace": _workspace_to_json(self.workspace),
-        }
-        (d / "trace.json").write_text(dumps_json(doc))
+        arrays = {name: np.asarray(array) for name, array in self.arrays.items()}
+        doc = to_plain({"version": TRACE_VERSION, "family": self.family, "events": self.events, "metadata": self.metadata,
+                        "results": self.results, "workspace": _workspace_to_json(self.workspace)}, json_safe=True)
+        doc["schema"] = schema_of(doc, arrays)
+        with staged_files(d, TRACE_FILES) as staging:
+            np.savez_compressed(staging.path / "trace.npz", **arrays)
+            (staging.path / "trace.json").write_text(dumps_json(doc), encoding="utf-8")
         return d
 
     @classmethod
     def load(cls, directory: str | Path) -> "Trace":
-        """Read a trace written by :meth:`save`.
+        """Read a trace written by :meth:`save`, checking everything it reads
+        (:mod:`~robofleet.core.trace_check`).
 
         Raises
         ------
         TraceError
-            ``directory`` is not a path, or holds no readable, complete trace of this version.
+            ``directory`` is not a path, or holds no readable, complete trace of a known
+            version, or one whose content breaks a rule of :mod:`~robofleet.core.trace_check`
+            (the message names the file and the field).
         """
         if not isinstance(directory, (str, Path)):
             raise TraceError(f"directory: expected a trace directory path, received {short_repr(directory)}")
         d = Path(directory)
-        try:
-            doc = json.loads((d / "trace.json").read_text())
-            with np.load(d / "trace.npz", allow_pickle=False) as npz:
-                arrays = {k: npz[k] for k in npz.files}
-        except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:
-            raise TraceError(f"{d}: expected a trace directory with trace.json and trace.npz, received an unreadable one ({exc})") from None
-        if not isinstance(doc, dict) or doc.get("version") != TRACE_VERSION:
-            received = doc.get("version") if isinstance(doc, dict) else type(doc).__name__
-            raise TraceError(f"{d / 'trace.json'}: version: expected {TRACE_VERSION}, received {received!r}")
-        missing = [key for key in TRACE_KEYS if key not in doc]
-        if missing:
-            raise TraceError(f"{d / 'trace.json'}: expected the keys {list(TRACE_KEYS)}, received none for {missing}")
+        doc = _read_document(d / "trace.json")
+        arrays = _read_arrays(d / "trace.npz")
+        check_arrays(arrays, doc, str(d / "trace.npz"))
         try:
             workspace = _workspace_from_json(doc.get("workspace"))
-        except (KeyError, TypeError, ValueError, RobofleetError) as exc:
-            raise TraceError(f"{d / 'trace.json'}: workspace: expected bounds, obstacles and regions, received an unreadable one ({exc})") from None
+        except (KeyError, TypeError, ValueError, AttributeError, RobofleetError) as exc:
+            raise TraceError(f"{d / 'trace.json'}: workspace: expected bounds, obstacles and regions, received an unreadable one ({one_line(exc)})") from None
         return cls(doc["family"], arrays, doc["events"], doc["metadata"], doc["results"], workspace)
+
+
+def _read_document(path: Path) -> dict[str, Any]:
+    """``trace.json``, parsed and checked (:func:`~robofleet.core.trace_check.check_document`)."""
+    try:
+        doc = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError) as exc:
+        raise TraceError(f"{path}: expected a trace directory holding trace.json and trace.npz, received no readable "
+                         f"{path.name} ({getattr(exc, 'strerror', None) or one_line(exc)})") from None
+    except ValueError as exc:
+        raise TraceError(f"{path}: expected JSON, received text that is not ({one_line(exc)})") from None
+    if not isinstance(doc, dict) or doc.get("version") not in READABLE_VERSIONS:
+        received = doc.get("version") if isinstance(doc, dict) else type(doc).__name__
+        raise TraceError(f"{path}: version: expected one of {list(READABLE_VERSIONS)}, received {short_repr(received)}")
+    missing = [key for key in TRACE_KEYS + (("schema",) if doc["version"] >= 3 else ()) if key not in doc]
+    if missing:
+        raise TraceError(f"{path}: expected the keys {list(TRACE_KEYS)}, received none for {missing}")
+    check_document(doc, str(path))
+    return doc
+
+
+def _read_arrays(path: Path) -> dict[str, np.ndarray]:
+    """Every array of ``trace.npz`` (read in full, so a damaged member shows here)."""
+    try:
+        with np.load(path, allow_pickle=False) as npz:
+            return {k: npz[k] for k in npz.files}
+    except (OSError, ValueError, EOFError, zipfile.BadZipFile, zlib.error, KeyError) as exc:
+        raise TraceError(f"{path}: expected a trace directory holding trace.json and trace.npz, received no readable "
+                         f"{path.name} ({getattr(exc, 'strerror', None) or one_line(exc)})") from None
 
 
 def _workspace_to_json(ws: Workspace | None):

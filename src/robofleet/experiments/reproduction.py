@@ -28,10 +28,14 @@ import pandas as pd
 from ..core.config import read_mapping
 from ..core import arguments
 from ..core.errors import ConfigError
+from ..core.files import staged_files
 from ..scenarios import catalogue
 from .executors import Executor, as_executor
 from .store import ERROR_COLUMN
 from .sweep import run_sweep
+
+TABLE_FILES = ("summary.csv", "table.md")
+"""The tables a reproduction writes into its output directory."""
 
 Frames = dict[str, pd.DataFrame]
 
@@ -182,10 +186,11 @@ def reproduce(
 
 
 def write_tables(tables: dict[str, pd.DataFrame], text: str, out: Path) -> list[Path]:
-    """Write ``summary.csv`` (all tables, column ``table`` first) and ``table.md``."""
-    out.mkdir(parents=True, exist_ok=True)
+    """Write ``summary.csv`` (all tables, column ``table`` first) and ``table.md``, which
+    replace the earlier ones together once both are complete (:func:`~robofleet.core.files.staged_files`)."""
     blocks = [table.assign(table=name)[["table", *table.columns]] for name, table in tables.items()]
     summary = pd.concat(blocks, ignore_index=True) if blocks else pd.DataFrame()
-    summary.to_csv(out / "summary.csv", index=False)
-    (out / "table.md").write_text(text)
-    return [out / "summary.csv", out / "table.md"]
+    with staged_files(out, TABLE_FILES) as staging:
+        summary.to_csv(staging.path / "summary.csv", index=False)
+        (staging.path / "table.md").write_text(text, encoding="utf-8")
+    return [out / name for name in TABLE_FILES]

@@ -6,11 +6,12 @@ Layout
     The rows of a task that finished (its fields merged into every row).
 ``<store>/error-<id>.parquet``
     One row for a task that raised: its fields plus ``error``, the one-line message.
-``<store>/.<name>.tmp-<pid>-<hex>``
+``<store>/.<name>.tmp-<pid>-<hex>.parquet``
     A file being written. Every file is written under such a hidden name and then
-    renamed with :func:`os.replace`, which is atomic on POSIX and Windows, so a process
-    killed mid-write leaves either the complete file or only a hidden temporary that
-    readers ignore (Parquet readers skip names starting with ``.``).
+    renamed with :func:`os.replace`, which is atomic on POSIX and Windows
+    (:func:`robofleet.core.files.replacing`), so a process killed mid-write leaves either
+    the complete file or only a hidden temporary that readers ignore (Parquet readers
+    skip names starting with ``.``).
 
 ``<store>/_damaged/``
     Files found damaged (truncated by a crash, or not Parquet at all), set aside with one
@@ -36,7 +37,6 @@ from __future__ import annotations
 
 import json
 import os
-import uuid
 import warnings
 from contextlib import contextmanager
 from pathlib import Path
@@ -55,6 +55,7 @@ except ImportError:  # Windows: no advisory locks, the store then assumes one wr
 
 from ..core import arguments
 from ..core.errors import ConfigError
+from ..core.files import is_temporary, replacing
 from ..core.trace import to_plain
 
 RUN_PREFIX = "run-"
@@ -127,7 +128,7 @@ class ResultStore:
         """Hidden files left by writes that were interrupted."""
         if not self.directory.is_dir():
             return []
-        return sorted(p for p in self.directory.iterdir() if p.name.startswith(".") and ".tmp-" in p.name)
+        return sorted(p for p in self.directory.iterdir() if is_temporary(p))
 
     def remove_temporaries(self) -> int:
         """Delete files left by interrupted writes; returns how many were removed.
@@ -161,20 +162,11 @@ class ResultStore:
         return self._atomic_write(ERROR_PREFIX + file_stem(str(task["run_id"])) + SUFFIX, rows_to_table([row]))
 
     def _atomic_write(self, name: str, table: pa.Table) -> Path:
-        """Write under a hidden name, fsync, rename, fsync the directory: after a crash the
-        file is either complete or absent."""
-        self.directory.mkdir(parents=True, exist_ok=True)
-        final = self.directory / name
-        temp = self.directory / f".{name}.tmp-{os.getpid()}-{uuid.uuid4().hex[:8]}"
-        try:
+        """Write one store file through :func:`~robofleet.core.files.replacing`: after a
+        crash it is either complete or absent."""
+        with replacing(self.directory / name) as temp:
             pq.write_table(table, temp)
-            with open(temp, "rb") as handle:
-                os.fsync(handle.fileno())
-            os.replace(temp, final)
-            sync_directory(self.directory)
-        finally:
-            temp.unlink(missing_ok=True)
-        return final
+        return self.directory / name
 
     # -- one writer --------------------------------------------------------------
     @contextmanager
@@ -305,20 +297,6 @@ def has_parquet_magic(path: Path) -> bool:
             return head == PARQUET_MAGIC and handle.read(4) == PARQUET_MAGIC
     except OSError:
         return False
-
-
-def sync_directory(directory: Path) -> None:
-    """fsync a directory so a rename in it survives a crash (a no-op where unsupported)."""
-    try:
-        fd = os.open(directory, os.O_RDONLY)
-    except OSError:
-        return
-    try:
-        os.fsync(fd)
-    except OSError:
-        pass
-    finally:
-        os.close(fd)
 
 
 def read_parquet(path: Path) -> pa.Table:

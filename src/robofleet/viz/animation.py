@@ -16,6 +16,7 @@ from matplotlib.lines import Line2D
 from matplotlib.transforms import blended_transform_factory
 from PIL import Image
 
+from ..core.files import replacing
 from ..core.progress import tracked
 from ..core.trace import Trace
 
@@ -24,13 +25,16 @@ PALETTE_THREADS = 2
 
 
 def save_figure(fig: plt.Figure, path: str | Path, dpi: int = 120, tight: bool = False) -> Path:
-    """Write ``fig`` to ``path`` (parent folders created), close it, return the path."""
+    """Write ``fig`` to ``path`` (parent folders created; the file replaced only once
+    complete, :func:`~robofleet.core.files.replacing`), close it, return the path."""
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
     if tight:
         fig.tight_layout()
-    fig.savefig(path, dpi=dpi)
-    plt.close(fig)
+    try:
+        with replacing(path) as temp:
+            fig.savefig(temp, dpi=dpi)
+    finally:
+        plt.close(fig)
     return path
 
 
@@ -47,7 +51,6 @@ def save_gif(fig: plt.Figure, update: Callable[[int], object], frames: Iterable[
     ``progress`` is false). The figure is closed afterwards.
     """
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
     frames = list(frames)
     render = blitted_frames if blit else drawn_frames
     with tracked(len(frames), f"rendering {path.name}", enabled=progress) as advance, \
@@ -99,8 +102,10 @@ def gif_frame(image: Image.Image) -> Image.Image:
 
 
 def write_gif(images: list[Image.Image], path: Path, fps: int) -> None:
-    """An endlessly looping GIF of ``images``, ``1000 / fps`` ms each."""
-    images[0].save(path, save_all=True, append_images=images[1:], duration=int(1000 / fps), loop=0)
+    """An endlessly looping GIF of ``images``, ``1000 / fps`` ms each (the file replaced
+    only once complete, :func:`~robofleet.core.files.replacing`)."""
+    with replacing(path) as temp:
+        images[0].save(temp, save_all=True, append_images=images[1:], duration=int(1000 / fps), loop=0)
 
 
 def frame_indices(n_steps: int, max_frames: int = 150) -> list[int]:

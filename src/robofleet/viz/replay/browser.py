@@ -25,6 +25,7 @@ from pathlib import Path
 from typing import Any, Self
 
 from ...core.errors import RobofleetError
+from ...core.files import write_bytes
 
 CHROMIUM_NAMES = ("chromium", "chromium-browser", "google-chrome", "chrome")
 CHROMIUM_FLAGS = ("--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
@@ -236,6 +237,5 @@ def screenshot_page(html_path: str | Path, png_path: str | Path, *, frame: int |
         page.evaluate(f"location.hash = 'frame={last if frame is None else int(frame)}'")
         page.wait_for(f"document.body.dataset.frame === '{last if frame is None else int(frame)}'")
         time.sleep(0.2)
-        png_path.parent.mkdir(parents=True, exist_ok=True)
-        png_path.write_bytes(page.screenshot())
+        write_bytes(png_path, page.screenshot())
     return png_path

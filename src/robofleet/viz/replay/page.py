@@ -4,6 +4,13 @@ The page's script and style are package data (``replay.js``, ``replay.css``,
 ``template.html``, read with :mod:`importlib.resources`); the scene is embedded as JSON
 with its arrays deflated and base64-encoded. Nothing is fetched: the file works offline,
 from any directory, without a server.
+
+The template's placeholders (:data:`PLACEHOLDERS`) are filled in one pass over the
+template (:func:`fill_template`): text put into the page (a scenario, team or robot named
+``__DATA__``, a ``</script>`` in a name) is never read again as a placeholder, and the
+embedded JSON has every ``<`` written ``\u003c``, so nothing in it can end or reopen the
+``<script>`` element that holds it. Every page names its maker in its head
+(:data:`GENERATOR`), which is how ``robofleet view`` knows a page it may replace.
 """
 
 from __future__ import annotations
@@ -11,13 +18,22 @@ from __future__ import annotations
 import html
 import json
 import os
+import re
 import sys
 from importlib import resources
 from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
 
 from ...core.errors import ConfigError
+from ...core.files import write_text
 from .scene import Scene
+
+PLACEHOLDERS = re.compile(r"__(VERSION|TITLE|CSS|JS|DATA)__")
+"""The placeholders of ``template.html``."""
+GENERATOR = '<meta name="generator" content="robofleet'
+"""The start of the tag every page robofleet writes carries in its head."""
+GENERATOR_WITHIN = 2048
+"""Bytes from the start of a page within which :data:`GENERATOR` is looked for."""
 
 
 def asset(name: str) -> str:
@@ -26,23 +42,31 @@ def asset(name: str) -> str:
 
 
 def scene_json(scene: Scene) -> str:
-    """The scene as JSON safe to embed in a ``<script>`` element."""
+    """The scene as JSON safe to embed in a ``<script>`` element: ``<`` only occurs inside
+    JSON strings, where ``\\u003c`` stands for it, so no ``</script>`` or ``<!--`` remains."""
     text = json.dumps(scene.to_document(), separators=(",", ":"), allow_nan=False)
-    return text.replace("</", "<\\/")
+    return text.replace("<", "\\u003c")
+
+
+def robofleet_version() -> str:
+    """The installed version (``unknown`` in a source tree without metadata)."""
+    try:
+        return version("robofleet")
+    except PackageNotFoundError:  # pragma: no cover - running from a source tree without metadata
+        return "unknown"
+
+
+def fill_template(template: str, parts: dict[str, str]) -> str:
+    """``template`` with each placeholder replaced by ``parts[placeholder]``, in one pass:
+    the inserted text is never searched for placeholders."""
+    return PLACEHOLDERS.sub(lambda match: parts[match.group(0)], template)
 
 
 def replay_html(scene: Scene) -> str:
     """The complete page of ``scene``."""
-    try:
-        robofleet_version = version("robofleet")
-    except PackageNotFoundError:  # pragma: no cover - running from a source tree without metadata
-        robofleet_version = "unknown"
-    parts = {"__VERSION__": robofleet_version, "__TITLE__": html.escape(scene.title), "__CSS__": asset("replay.css"),
+    parts = {"__VERSION__": html.escape(robofleet_version()), "__TITLE__": html.escape(scene.title), "__CSS__": asset("replay.css"),
              "__JS__": asset("replay.js"), "__DATA__": scene_json(scene)}
-    page = asset("template.html")
-    for key in ("__VERSION__", "__TITLE__", "__CSS__", "__JS__"):
-        page = page.replace(key, parts[key])
-    return page.replace("__DATA__", parts["__DATA__"])  # last: the data may contain anything
+    return fill_template(asset("template.html"), parts)
 
 
 def write_html(scene: Scene, path: str | Path) -> Path:
@@ -57,15 +81,25 @@ def write_html(scene: Scene, path: str | Path) -> Path:
 
 
 def write_page(text: str, path: str | Path) -> Path:
-    """Write one HTML page to ``path`` (parent folders created); return the path, or raise
+    """Write one HTML page to ``path`` (parent folders created; the file replaced only once
+    complete, :func:`~robofleet.core.files.write_text`); return the path, or raise
     :class:`ConfigError` naming it when it cannot be written."""
     path = Path(path)
     try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        path.write_text(text, encoding="utf-8")
+        write_text(path, text)
     except OSError as exc:
         raise ConfigError(f"{path}: expected a writable file path, received one that cannot be written ({exc.strerror})") from None
     return path
+
+
+def is_robofleet_page(path: str | Path) -> bool:
+    """Whether the file at ``path`` is a page robofleet wrote (:data:`GENERATOR` near its start)."""
+    try:
+        with open(path, "rb") as handle:
+            head = handle.read(GENERATOR_WITHIN)
+    except OSError:
+        return False
+    return GENERATOR.encode() in head
 
 
 def can_open_browser() -> bool:

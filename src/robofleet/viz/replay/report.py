@@ -9,7 +9,7 @@ import re
 from pathlib import Path
 
 from ...core.errors import ConfigError
-from .page import write_page
+from .page import GENERATOR, robofleet_version, write_page
 
 FIGURE_SUFFIXES = {".png": "image/png", ".gif": "image/gif"}
 STYLE = """body{font:14px/1.45 system-ui,sans-serif;color:#222;max-width:1200px;margin:0 auto;padding:12px 20px}
@@ -89,7 +89,8 @@ def report_html(directory: str | Path, title: str | None = None) -> str:
     body = [f"<h1>{html.escape(name)}: reproduction report</h1>", f'<p class="meta">{html.escape(meta)}</p>' if meta else "",
             "<h2>Tables</h2>", markdown_html(tables), "<h2>Figures</h2>"]
     body += [figure_html(p) for p in figures] or ["<p>No figures were written.</p>"]
-    return (f'<!DOCTYPE html><html lang="en"><head><meta charset="utf-8"><title>{html.escape(name)}</title>'
+    return (f'<!DOCTYPE html><html lang="en"><head><meta charset="utf-8">{GENERATOR} {html.escape(robofleet_version())}">'
+            f"<title>{html.escape(name)}</title>"
             f"<style>{STYLE}</style></head><body>" + "\n".join(body) + "</body></html>")
 
 

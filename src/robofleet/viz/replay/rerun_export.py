@@ -17,10 +17,17 @@ from typing import Any
 
 import numpy as np
 
-from ...core.errors import ConfigError
+from ...core.errors import ConfigError, one_line
+from ...core.files import replacing
 from .scene import Layer, Scene, Shape
 
 TIME_AXIS = "time"
+APPLICATION_ID = "robofleet"
+"""The application id of every recording robofleet writes."""
+RRD_MAGIC = b"RRF"
+"""The first bytes of a Rerun recording file."""
+STORE_INFO_WITHIN = 4096
+"""Bytes from the start of a recording within which its application id is looked for."""
 
 
 def _rerun():
@@ -55,7 +62,8 @@ def robot_colours(scene: Scene) -> np.ndarray:
 
 
 def write_rrd(scene: Scene, path: str | Path) -> Path:
-    """Write ``scene`` as a Rerun recording to ``path``; return the path.
+    """Write ``scene`` as a Rerun recording to ``path`` (the file replaced only once
+    complete, :func:`~robofleet.core.files.replacing`); return the path.
 
     Raises
     ------
@@ -66,11 +74,22 @@ def write_rrd(scene: Scene, path: str | Path) -> Path:
     path = Path(path)
     scene.check()
     try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        rec = rr.RecordingStream("robofleet", recording_id=f"{scene.family}-{entity_name(scene.title)}", send_properties=False)
-        rec.save(path)
-    except (OSError, RuntimeError) as exc:
-        raise ConfigError(f"--rerun: expected a writable file path, received {path} ({exc})") from None
+        with replacing(path) as temp:
+            rec = rr.RecordingStream(APPLICATION_ID, recording_id=f"{scene.family}-{entity_name(scene.title)}", send_properties=False)
+            try:
+                rec.save(temp)
+            except RuntimeError as exc:
+                raise OSError(one_line(exc)) from None
+            log_scene(rr, rec, scene)
+            rec.flush()
+            rec.disconnect()
+    except OSError as exc:
+        raise ConfigError(f"--rerun: expected a writable file path, received {path} ({exc.strerror or one_line(exc)})") from None
+    return path
+
+
+def log_scene(rr: Any, rec: Any, scene: Scene) -> None:
+    """Log every layer of ``scene`` to the recording ``rec``."""
     times = rr.TimeColumn(TIME_AXIS, duration=np.asarray(scene.times, float))
     rec.log("world", rr.TextDocument(f"{scene.title}\n\n{scene.subtitle}"), static=True)
     log_robots(rr, rec, scene, times)
@@ -81,9 +100,18 @@ def write_rrd(scene: Scene, path: str | Path) -> Path:
             log_layer(rr, rec, scene, layer, times)
     log_solids(rr, rec, scene)
     log_events(rr, rec, scene)
-    rec.flush()
-    rec.disconnect()
-    return path
+
+
+def is_robofleet_recording(path: str | Path) -> bool:
+    """Whether the file at ``path`` is a Rerun recording robofleet wrote: it starts with
+    :data:`RRD_MAGIC` and names :data:`APPLICATION_ID` in its first message (the store
+    info, read without the rerun extra)."""
+    try:
+        with open(path, "rb") as handle:
+            head = handle.read(STORE_INFO_WITHIN)
+    except OSError:
+        return False
+    return head.startswith(RRD_MAGIC) and APPLICATION_ID.encode() in head
 
 
 def view_root(scene: Scene, view: int) -> str:
