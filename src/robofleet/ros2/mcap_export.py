@@ -21,7 +21,6 @@ the message definition written out from the message class (fields and nested typ
 from __future__ import annotations
 
 import importlib
-import os
 import re
 from pathlib import Path
 from typing import Any, Iterator
@@ -29,6 +28,7 @@ from typing import Any, Iterator
 import numpy as np
 
 from ..core.errors import ConfigError
+from ..core.files import replacing
 from ..core.trace import Trace
 from .messages import cell_markers, goal_message, int_message, path_message, polygon_message, pose_message
 from .runtime import CELLS_TOPIC, DEFAULT_PREFIX, MAP_FRAME, robot_topic
@@ -176,8 +176,8 @@ def cell_polygon_of(A: np.ndarray, b: np.ndarray, clip: np.ndarray) -> np.ndarra
 # -- the file --------------------------------------------------------------------------------
 def export_mcap(run: str | Path, out: str | Path, prefix: str = DEFAULT_PREFIX) -> tuple[Path, int]:
     """Write the run in ``run`` (a directory with trace.npz/trace.json) to ``out``;
-    returns the path and the number of messages. The file is written next to ``out`` and
-    renamed into place when complete."""
+    returns the path and the number of messages. The file is written whole
+    (:func:`robofleet.core.files.replacing`)."""
     from mcap.writer import Writer
     from rclpy.serialization import serialize_message
 
@@ -187,10 +187,9 @@ def export_mcap(run: str | Path, out: str | Path, prefix: str = DEFAULT_PREFIX) 
     if out.is_dir():
         raise ConfigError(f"--mcap: expected a file path, received the directory {out}")
     trace = Trace.load(run)
-    partial = out.with_name(f".{out.name}.partial-{os.getpid()}")
     count = 0
     try:
-        with open(partial, "wb") as stream:
+        with replacing(out) as temp, open(temp, "wb") as stream:
             writer = Writer(stream)
             writer.start(profile="ros2", library="robofleet")
             schemas: dict[str, int] = {}
@@ -205,10 +204,6 @@ def export_mcap(run: str | Path, out: str | Path, prefix: str = DEFAULT_PREFIX) 
                 writer.add_message(channels[topic], log_time=ns, data=serialize_message(message), publish_time=ns, sequence=count)
                 count += 1
             writer.finish()
-        os.replace(partial, out)
     except OSError as exc:
         raise ConfigError(f"--mcap: expected a writable file, received {out} ({exc.strerror})") from None
-    finally:
-        if partial.exists():
-            partial.unlink()
     return out, count

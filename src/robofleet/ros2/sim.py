@@ -39,8 +39,6 @@ nodes then follow ``/clock`` (``--use-sim-time``).
 from __future__ import annotations
 
 import heapq
-import os
-import shutil
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -280,13 +278,9 @@ def check_new_directory(out: Path) -> None:
 
 
 def save_trace(trace: Trace, out: Path) -> None:
-    """Write the trace into a temporary sibling directory, then rename it to ``out``."""
-    partial = out.with_name(f".{out.name}.partial-{os.getpid()}")
-    trace.save(partial)
-    if out.is_dir():
-        out.rmdir()  # empty: checked at start
-    os.replace(partial, out)
-    shutil.rmtree(partial, ignore_errors=True)
+    """Write the trace into ``out`` (new or empty, checked at start); both files land
+    together, complete (:meth:`Trace.save`)."""
+    trace.save(out)
 
 
 def make_sim_node(spec: Any, options: SimOptions):
