@@ -1,4 +1,4 @@
-"""Chance-constrained buffers of the B-UAVC (Zhu et al. 2022; notes/buavc.md "Buffer").
+"""Chance-constrained buffers of the B-UAVC (Zhu et al. 2022; docs/theory/buavc.md "Buffer").
 
 ``β = r_s + Φ⁻¹(√(1 − δ)) · √(aᵀ Σ_i a)`` with ``‖a‖ = 1``. Robot ``i`` then stays on its
 side of the separator, at least ``r_s`` from it, with probability ``≥ √(1 − δ)``; robot
