@@ -218,7 +218,7 @@ def one_step_gap(starts, velocities, goals) -> float:
 
 
 # ---------------------------------------------------------------------------------------
-# reference trajectories for the agreement test (tests/avoidance/test_orca_rvo2.py)
+# reference trajectories for the agreement test (tests/avoidance/test_orca_kernel.py)
 # ---------------------------------------------------------------------------------------
 def reference_cases() -> dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]]:
     """Small cases ``name -> (starts, velocities, goals)``: a head-on pair, a square swap,

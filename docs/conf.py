@@ -1,7 +1,12 @@
-"""Sphinx configuration of the robofleet documentation (API reference from the docstrings,
-guide pages from the README and docs/*.md). Build: ``make docs``."""
+"""Sphinx configuration of the robofleet documentation (guide, theory and results pages
+from docs/**/*.md, the API reference from the docstrings, the scenario and summary-key
+references generated from the code by ``_ext/robofleet_reference.py``). Build: ``make docs``."""
 
+import sys
 from importlib.metadata import version as installed_version
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent / "_ext"))
 
 project = "robofleet"
 author = "the robofleet authors"
@@ -12,9 +17,10 @@ extensions = [
     "sphinx.ext.napoleon",
     "sphinx.ext.viewcode",
     "myst_parser",
+    "robofleet_reference",
 ]
 source_suffix = {".rst": "restructuredtext", ".md": "markdown"}
-exclude_patterns = ["_build", "results/coordination"]
+exclude_patterns = ["_build", "_ext", "results/coordination"]
 autosummary_generate = True
 autosummary_imported_members = False
 autodoc_default_options = {"members": True, "undoc-members": False, "show-inheritance": True, "ignore-module-all": True}

@@ -1,4 +1,4 @@
-"""Three-projection differential-drive controller (notes/buavc.md)."""
+"""Three-projection differential-drive controller (docs/theory/buavc.md "Controllers")."""
 
 import numpy as np
 import pytest

@@ -1,4 +1,4 @@
-"""Chance-constrained buffers of the B-UAVC (Zhu et al. 2022; notes/buavc.md "Buffer").
+"""Chance-constrained buffers of the B-UAVC (Zhu et al. 2022; docs/theory/buavc.md "Buffer").
 
 ``β = r + Φ⁻¹(√(1 − δ)) · √(aᵀ Σ_i a)`` with ``‖a‖ = 1``, ``Σ_i`` the ego covariance and
 ``r`` the radius the row keeps: the pair's mean radius ``(r_i + r_j)/2`` for a neighbour,

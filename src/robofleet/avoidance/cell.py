@@ -1,4 +1,4 @@
-"""Buffered uncertainty-aware Voronoi cells (Zhu et al. 2022, Sec. "B-UAVC"; notes/buavc.md "Cell").
+"""Buffered uncertainty-aware Voronoi cells (Zhu et al. 2022, Sec. "B-UAVC"; docs/theory/buavc.md "Cell").
 
 ``V_i = {p : a_ijᵀp ≤ b_ij − ρ_ij − β_ij ∀ neighbours j;  a_ioᵀp ≤ b_io − r_i − β_io ∀ obstacles o;
 walls tightened like obstacles}``, recomputed every control step from the current

@@ -1,6 +1,6 @@
 """B-UAVC geometry in R³ (and any low dimension): exact projection onto a polytope cell,
 ε-shadow planes of boxes with yaw whose position is uncertain, and workspace bounds
-with height (Zhu et al. 2022, Sec. 4 and appendix A; ``notes/buavc.md``).
+with height (Zhu et al. 2022, Sec. 4 and appendix A; ``docs/theory/buavc.md``).
 
 A cell is a padded half-space array, as everywhere in :mod:`robofleet.avoidance`:
 unit normals ``A (N, M, d)``, offsets ``b (N, M)`` and a mask ``valid (N, M)``; robot

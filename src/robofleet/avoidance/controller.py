@@ -1,5 +1,5 @@
 """One-step B-UAVC controller for single-integrator robots with the deadlock heuristic
-of Zhu et al. 2022, appendix C (notes/buavc.md "Controllers", "Deadlock heuristic").
+of Zhu et al. 2022, appendix C (docs/theory/buavc.md "Controllers", "Deadlock heuristic").
 
 Each step, robot i projects its (possibly temporary) goal onto its cell, ``g* = Π_Vi(g)``,
 and commands ``u = min(v_max, ‖g* − p̂‖/Δt) · (g* − p̂)/‖g* − p̂‖`` (zero when the cell is

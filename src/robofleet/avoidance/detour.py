@@ -1,5 +1,5 @@
-"""Detours around neighbours that hold still (issue 10, item 1: "B-UAVC that gets every
-robot home").
+"""Detours around neighbours that hold still (one of the liveness rules
+that get every robot home, docs/theory/buavc.md "Liveness rules").
 
 The static roadmap (:mod:`.navigation`) knows only the map. A parked robot that sits in
 the gap between two obstacles, or a robot stuck there, closes that gap as surely as an

@@ -1,5 +1,5 @@
 """Differential-drive controller in the B-UAVC: three projections of the goal
-(Zhu et al. 2022, Sec. 5.3; ``notes/buavc.md`` "Controllers"; after the BVC controller of
+(Zhu et al. 2022, Sec. 5.3; ``docs/theory/buavc.md`` "Controllers"; after the BVC controller of
 Zhou et al., RA-L 2017).
 
 For a robot at ``p̂`` with heading ``θ`` and goal ``g``:

@@ -1,6 +1,6 @@
-"""Liveness for B-UAVC: rules that get every robot home (issue 10, item 1).
+"""Liveness for B-UAVC: rules that get every robot home (docs/theory/buavc.md "Liveness rules").
 
-The authors' controllers (notes/buavc.md "Controllers", "Deadlock heuristic") stop a
+The authors' controllers (docs/theory/buavc.md "Controllers", "Deadlock heuristic") stop a
 robot for good at its goal and react to a deadlock only after it is detected, with a
 90° goal rotation or a detour to one vertex of the blocking obstacle. Four rules, all
 decentralized and communication-free, replace that where it fails:

@@ -1,5 +1,5 @@
 """B-UAVC receding-horizon control (MPC) for any robot model (Zhu et al. 2022, Sec. 5.4 and
-appendix C; ``notes/buavc.md`` "Controllers").
+appendix C; ``docs/theory/buavc.md`` "Controllers").
 
 Each control step robot ``i`` solves ::
 
@@ -30,7 +30,7 @@ the linear models) the robot applies its model's safe fallback (zero input; for 
 integrator the brake of :mod:`.braking`; for the quadrotor a tilt against its horizontal
 velocity, zero climb: :func:`~robofleet.dynamics.quadrotor.braking_control`).
 
-Our additions to the paper's formulation (issue 10; the paper gives no details of its
+Our additions to the paper's formulation (the paper gives no details of its
 quadrotor MPC beyond "every predicted position in the current B-UAVC"):
 
 * the **terminal rest set** ``v_N = 0, φ_N = θ_N = 0`` (``terminal_rest``, within

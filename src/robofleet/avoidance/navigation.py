@@ -1,8 +1,8 @@
 """Sub-goals at visible vertices of the grown obstacles: a static visibility roadmap
-(issue 10, item 1; the "sub-goals on the cell boundary / at obstacle vertices" idea the
-issue lists, made global).
+(the "sub-goals on the cell boundary / at obstacle vertices" idea, made
+global).
 
-The appendix-C obstacle branch (notes/buavc.md "Deadlock heuristic") sends a stuck robot
+The appendix-C obstacle branch (docs/theory/buavc.md "Deadlock heuristic") sends a stuck robot
 to one vertex of the obstacle blocking it; behind a row of boxes that vertex can lead into
 the next trap. Here each robot steers, from the start, towards the next vertex of its
 shortest obstacle-free path. The obstacles are the known, static map that B-UAVC already

@@ -1,8 +1,8 @@
-"""Random 2-D B-UAVC scenarios for liveness benchmarks (issue 10, item 2).
+"""Random 2-D B-UAVC scenarios for liveness benchmarks.
 
 Each scenario is a plain scenario MAPPING (what :func:`robofleet.load_scenario` takes)
 drawn from a seed (step budget by the shipped rule, :func:`.spec.straight_line_budget`): 8–16 single-integrator robots in the authors' random antipodal swap
-(notes/buavc.md "Setups": robot i at a random angle in its own sector, radius
+(docs/theory/buavc.md "Setups": robot i at a random angle in its own sector, radius
 U(0.3, 4.7) m, goal = −start; the swap itself is drawn by the run's own seed) among
 2–6 random convex obstacles (random convex polygons of 3–6 vertices, 0.3–0.7 m across,
 kept away from the centre ring nothing is guaranteed about). Pure: no file I/O, the

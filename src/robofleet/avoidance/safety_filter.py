@@ -526,7 +526,7 @@ class RobotSafetyFilter:
     The cell is built by :func:`~.cell.cell_from_view`, the reference the batch builder is
     tested against, so a robot filtering alone gets the velocity :class:`SafetyFilter`
     computes for it from the same estimates (the tests check it). The typical use is one
-    instance per robot process, e.g. inside a ROS 2 node (see the docs' integration page).
+    instance per robot process, e.g. inside a ROS 2 node (see the docs' embedding page).
     """
 
     radius: float

@@ -1,6 +1,6 @@
 """The closed loop of Zhu et al. 2022 for every robot model and team: spec → world → steps → Trace.
 
-Every step (notes/buavc.md "Noise"): each robot's position estimate is its TRUE position
+Every step (docs/theory/buavc.md "Noise"): each robot's position estimate is its TRUE position
 plus a draw from ``N(0, Σ)`` (velocities, headings and attitudes are measured exactly),
 and each obstacle's estimated position is its true position plus a draw from
 ``N(0, Σ_o)``; every robot builds its cell from those estimates, its team's controller
@@ -301,7 +301,7 @@ def separator_covariances(spec: Spec, setup: MethodSetup, covs: np.ndarray) -> n
     ground robot's estimate (a horizontal normal misclassifies it with probability 0 at any
     offset), which leaves its section empty after the buffer r_s, however high the flying
     robot is. Any plane that both robots compute alike keeps the chance constraint (the
-    argument of notes/buavc.md "Buffer" holds for every plane once β uses the true Σ_i), so
+    argument of docs/theory/buavc.md "Buffer" holds for every plane once β uses the true Σ_i), so
     the plane is taken from ``σ² I`` — for equal σ the perpendicular bisector, the ordinary
     Voronoi face, which gives each robot half the distance — and β from Σ_i
     (:meth:`CellModel.rebuffered`)."""

@@ -1,0 +1,97 @@
+"""Run the code blocks of a Markdown page as a reader would: shared by the README and docs tests.
+
+``python`` blocks run in one namespace per page, ``sh`` blocks one command per line (the
+``robofleet`` and ``python`` commands through this interpreter, ``make TARGET`` as a dry
+run of that target), YAML blocks with a ``family`` key are loaded as scenarios; blocks in
+any other language (``text``, none) are illustrations and are not run. Blocks run in page
+order in one working directory where the checkout's ``scenarios/``, ``sweeps/`` and
+``examples/`` are visible, so a later block may read what an earlier one wrote.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import shlex
+import subprocess
+import sys
+from pathlib import Path
+
+import yaml
+
+ROOT = Path(__file__).resolve().parents[1]
+FENCE = re.compile(r"^(?P<fence>```+)(?P<lang>[^\s`{]*)[^\n]*\n(?P<body>.*?)^(?P=fence)[ \t]*$", re.S | re.M)
+VISIBLE = ("scenarios", "sweeps", "examples")
+RUN_LANGUAGES = ("python", "sh", "yaml")
+
+
+def code_blocks(text: str) -> list[tuple[str, str]]:
+    """``(language, body)`` of every fenced block (MyST directives such as ``{toctree}`` excluded)."""
+    return [(m["lang"], m["body"]) for m in FENCE.finditer(text)]
+
+
+def runnable_blocks(path: Path) -> list[tuple[str, str]]:
+    return [(lang, body) for lang, body in code_blocks(path.read_text(encoding="utf-8")) if lang in RUN_LANGUAGES]
+
+
+def commands(body: str) -> list[list[str]]:
+    """The commands of a shell block, one per line, comments dropped."""
+    out = []
+    for line in body.splitlines():
+        argv = shlex.split(line, comments=True)
+        if argv:
+            out.append(argv)
+    return out
+
+
+def prepare(workdir: Path) -> Path:
+    """A working directory that sees the checkout's catalogue and examples."""
+    for name in VISIBLE:
+        link = workdir / name
+        if not link.exists():
+            link.symlink_to(ROOT / name, target_is_directory=True)
+    return workdir
+
+
+def run_command(argv: list[str], workdir: Path) -> subprocess.CompletedProcess:
+    """One command of a shell block, as a reader would type it (``make`` as a dry run)."""
+    env = {**os.environ, "MPLBACKEND": "Agg", "PYTHONPATH": os.pathsep.join([str(ROOT / "src"), os.environ.get("PYTHONPATH", "")])}
+    if argv[0] == "make":
+        return subprocess.run(["make", "-n", *argv[1:]], cwd=ROOT, capture_output=True, text=True, env=env, timeout=60)
+    if argv[0] == "robofleet":
+        argv = [sys.executable, "-m", "robofleet", *argv[1:]]
+    elif argv[0] == "python":
+        argv = [sys.executable, *argv[1:]]
+    else:
+        raise AssertionError(f"a shell block runs a command the docs test cannot run: {shlex.join(argv)}")
+    return subprocess.run(argv, cwd=workdir, capture_output=True, text=True, env=env, timeout=600)
+
+
+def run_page(path: Path, workdir: Path) -> int:
+    """Run every runnable block of ``path`` in order; returns how many ran. Fails on the first error."""
+    import robofleet
+
+    prepare(workdir)
+    namespace: dict = {}
+    ran = 0
+    here = Path.cwd()
+    os.chdir(workdir)
+    try:
+        for lang, body in runnable_blocks(path):
+            if lang == "python":
+                exec(compile(body, f"{path.name}: python block", "exec"), namespace)
+            elif lang == "sh":
+                for argv in commands(body):
+                    result = run_command(argv, workdir)
+                    assert result.returncode == 0, f"{path.name}: `{shlex.join(argv)}` exited {result.returncode}: {result.stderr[-2000:]}"
+                    assert "Traceback" not in result.stderr, f"{path.name}: `{shlex.join(argv)}`: {result.stderr[-2000:]}"
+            else:
+                data = yaml.safe_load(body)
+                if isinstance(data, dict) and "family" in data:
+                    robofleet.load_scenario(data)
+                else:
+                    continue
+            ran += 1
+    finally:
+        os.chdir(here)
+    return ran
