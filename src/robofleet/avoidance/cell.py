@@ -160,7 +160,7 @@ def neighbour_pairs(estimates: np.ndarray, local_box: float) -> np.ndarray:
 
 
 GRID_CELLS_MAX = 2.0**62
-"""Most cells the uniform grid of :mod:`.neighbours` may span (its integer cell keys are
+"""Most cells the uniform grid of :mod:`robofleet.avoidance.neighbours` may span (its integer cell keys are
 ``c_x · rows + c_y``); estimates spread wider (``1e20`` m apart) use a k-d tree."""
 
 

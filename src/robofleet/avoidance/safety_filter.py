@@ -414,6 +414,10 @@ class SafetyFilter:
                deadlock: DeadlockParams | None = None) -> SafetyFilter:
         """A filter for ``n`` robots.
 
+        Lengths (coordinates, radii, v_max, the step ``v_max Δt``) are at most
+        :data:`MAX_LENGTH`, covariance entries at most :data:`MAX_VARIANCE`; anything else
+        is a :class:`~robofleet.core.errors.ConfigError` naming the argument.
+
         Parameters
         ----------
         radius, v_max: the safety radius r_i and the speed limit, one value or one per robot
@@ -426,10 +430,6 @@ class SafetyFilter:
         obstacle_cov: ``Σ_o`` ``(2, 2)`` of the obstacles' positions (``None``: known exactly).
         local_box: R_loc, half-width of the box around each estimate that is considered.
         deadlock: parameters of the deadlock memory (appendix C); ``None`` keeps none.
-
-        Lengths (coordinates, radii, v_max, the step ``v_max Δt``) are at most
-        :data:`MAX_LENGTH`, covariance entries at most :data:`MAX_VARIANCE`; anything else
-        is a :class:`~robofleet.core.errors.ConfigError` naming the argument.
         """
         if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
             raise ConfigError(f"n: expected a positive integer number of robots, received {short_repr(n)}")

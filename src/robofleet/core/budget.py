@@ -103,6 +103,9 @@ def recorded_rows(steps: int, record_every: int = 1) -> int:
 class RunSize:
     """What a run of a scenario holds for its whole length, as the scenario decides it.
 
+    Each ``*_field`` may name several fields, separated by commas; :attr:`fields` names
+    them all, and a refusal names every one (:func:`check_run_size`).
+
     Attributes
     ----------
     steps: the step budget (recorded state arrays have ``steps + 1`` rows).
@@ -116,9 +119,6 @@ class RunSize:
     record_every: only the states and per-step rows of every ``record_every``-th step are
         kept (:func:`recorded_rows`); the per-step compute times are kept for every step.
     row_fields: the scenario fields that set ``bytes_per_robot_step`` or ``record_every``.
-
-    Each ``*_field`` may name several fields, separated by commas; :attr:`fields` names
-    them all, and a refusal names every one (:func:`check_run_size`).
     """
 
     steps: int
