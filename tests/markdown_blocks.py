@@ -67,6 +67,23 @@ def run_command(argv: list[str], workdir: Path) -> subprocess.CompletedProcess:
     return subprocess.run(argv, cwd=workdir, capture_output=True, text=True, env=env, timeout=600)
 
 
+def check_ros2_file(data: object, body: str, workdir: Path) -> bool:
+    """Read a ROS 2 launch file or a filter's ``ros__parameters`` file as robofleet would;
+    whether ``data`` was one."""
+    if not isinstance(data, dict):
+        return False
+    if "nodes" in data:
+        from robofleet.ros2.launch import read_launch_file as read
+    elif any(isinstance(v, dict) and "ros__parameters" in v for v in data.values()):
+        from robofleet.ros2.filter import settings_from_parameters as read
+    else:
+        return False
+    file = workdir / "block.yaml"
+    file.write_text(body, encoding="utf-8")
+    read(str(file))
+    return True
+
+
 def run_page(path: Path, workdir: Path) -> int:
     """Run every runnable block of ``path`` in order; returns how many ran. Fails on the first error."""
     import robofleet
@@ -89,7 +106,7 @@ def run_page(path: Path, workdir: Path) -> int:
                 data = yaml.safe_load(body)
                 if isinstance(data, dict) and "family" in data:
                     robofleet.load_scenario(data)
-                else:
+                elif not check_ros2_file(data, body, workdir):
                     continue
             ran += 1
     finally:

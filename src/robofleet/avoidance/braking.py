@@ -91,7 +91,7 @@ every step's cells are built from the segments as they are, and it stays far bel
 (velocities are measured exactly), the true segment shifted by the estimate's error
 ``e_i``. The chance buffer ``β_i = Φ⁻¹(√(1 − δ)) √(aᵀΣ_i a)`` of each row then keeps the
 true segment on its side with probability ≥ ``√(1 − δ)`` whenever the estimated one is
-(the argument of notes/buavc.md "Buffer" holds for any plane both robots compute alike),
+(the argument of docs/theory/buavc.md "Buffer" holds for any plane both robots compute alike),
 which gives the per-pair, per-step bound δ of Sec. 4 at that step. The induction across
 steps does not carry over: the next estimate moves the segment by ``e_i(k+1) − e_i(k)``,
 so it may start outside the new cell; the rule then brakes (estimate inside its cell) or

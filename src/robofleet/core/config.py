@@ -379,8 +379,8 @@ def load_spec(source: ScenarioSource, model: type[_Model], overrides: Mapping[st
 
     Parameters
     ----------
-    source: a shipped scenario name, a YAML file, a mapping with a file's keys, or a
-        validated ``model`` (returned as it is).
+    source: the scenario (its shipped name, its YAML file, a mapping with a file's keys,
+        or the validated ``model`` itself, returned as it is).
     model: the family's ``Spec``.
     overrides: optional ``{"dotted.field": value}`` applied before validation (not with a spec).
     argument: the caller's parameter name, for the messages.
