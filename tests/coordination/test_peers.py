@@ -312,3 +312,51 @@ def test_waiting_removed_share():
     assert waiting_removed_share(10.0, 10.0) == 0.0
     assert waiting_removed_share(15.0, 10.0) == -0.5
     assert np.isnan(waiting_removed_share(1.0, 0.0)) and np.isnan(waiting_removed_share(float("nan"), 3.0))
+
+
+# ---------------------------------------------------------------- scenarios, verdicts, the reproduction's table
+def test_stations_need_the_warehouse_and_enough_stations():
+    from robofleet.core.errors import ScenarioError
+    from robofleet.scenarios import load_scenario
+    with pytest.raises(ScenarioError, match="robots.placement: expected stations only with workspace preset warehouse"):
+        load_scenario("coordination/x_corridor_20", {"robots.placement": "stations"})
+    with pytest.raises(ScenarioError, match="robots.count: expected at most 224 robots with placement: stations"):
+        load_scenario("coordination/warehouse_50", {"robots.count": 225})
+
+
+def test_warehouse_instances_follow_the_seed_and_keep_robots_at_distinct_stations():
+    from robofleet.coordination.maps import sample_station_instance, warehouse_stations, warehouse_workspace
+    a, b = sample_station_instance(120, np.random.default_rng(1)), sample_station_instance(120, np.random.default_rng(1))
+    assert np.array_equal(a[0], b[0]) and np.array_equal(a[1], b[1])
+    points = np.concatenate(a)
+    assert len(np.unique(points, axis=0)) == 240
+    assert np.isin(points.view([("x", float), ("y", float)]), warehouse_stations().view([("x", float), ("y", float)])).all()
+    assert warehouse_workspace().clearance(points).min() >= 15.0  # a robot of radius 15 fits at every station
+
+
+@pytest.mark.parametrize("method", ["btpg", "optimal"])
+def test_check_states_the_guarantee_of_the_peers(method):
+    from robofleet.coordination import check
+    from robofleet.scenarios import load_scenario
+    verdict = {g.name: g for g in check(load_scenario("coordination/fig2_three_robots", {"policy.method": method}))}
+    deadlock = verdict["no deadlock under this policy"]
+    assert deadlock.holds and deadlock.reference == "Theorems 1, 2" and f"method {method}" in deadlock.consequence
+
+
+def test_peers_table_pairs_the_methods_and_measures_against_rmtrack():
+    import pandas as pd
+    from robofleet.experiments.reproductions.coordination_peers import peers_summary
+    rows = []
+    for seed, waits in ((1, {"RMTRACK (checked)": 10.0, "RMTRACK+TFF (checked)": 4.0, "RMTRACK+TFA (checked)": 5.0, "BTPG": 8.0, "optimal": 2.0}),
+                        (2, {"RMTRACK (checked)": 30.0, "RMTRACK+TFF (checked)": 12.0, "RMTRACK+TFA (checked)": 9.0, "BTPG": 30.0, "optimal": 6.0})):
+        for variant, wait in waits.items():
+            rows.append({"n_robots": 5, "seed": seed, "variant": variant, "success": True, "finished": True, "deadlock": False,
+                         "collisions": 0, "plan_id": f"p{seed}", "unnecessary_waiting": wait, "mean_travel_time": 50.0 + wait / 5,
+                         "flips": 1, "step_decision_seconds": 1e-5, "decision_seconds": 0.01, "decisions": 2, "budget_exhausted": 1,
+                         "switchable": 3, "n_obstacles": 6, "error": None})
+    table = peers_summary({"coordination_peers_fig6": pd.DataFrame(rows)}).set_index("method")
+    assert list(table.index) == ["RMTRACK", "RMTRACK+TFF (checked)", "RMTRACK+TFA (checked)", "BTPG", "optimal"]
+    assert table.loc["optimal", "waiting_removed"] == pytest.approx(1 - 8 / 40)
+    assert table.loc["BTPG", "waiting_removed"] == pytest.approx(1 - 38 / 40)
+    assert table.loc["RMTRACK", "waiting_removed"] == 0.0
+    assert table["paired"].all() and table.loc["BTPG", "switchable"] == 0.5 and table.loc["optimal", "exhausted_share"] == 0.5

@@ -116,8 +116,9 @@ def plan_sides(space: CoordinationSpace, labels: np.ndarray) -> np.ndarray:
     return np.where(space.side_other[first] == labels, first, first + 1)
 
 
-DEFAULT_VISIT_BUDGET = 20_000_000
-"""Vertices the offline searches may visit in all (about a second of compiled search)."""
+DEFAULT_VISIT_BUDGET = 100_000_000
+"""Vertices the offline searches may visit in all (a few seconds of compiled search; the
+200-robot warehouse instances need about half of it)."""
 
 
 def classify_switchable(space: CoordinationSpace, layout: SegmentLayout, budget: int = DEFAULT_VISIT_BUDGET) -> Classification:

@@ -123,7 +123,8 @@ def waiting_removed_share(unnecessary_waiting: float, baseline_waiting: float) -
     left; 0: as much as the baseline; negative: more). NaN when the baseline has none."""
     if not np.isfinite(baseline_waiting) or baseline_waiting <= 0 or not np.isfinite(unnecessary_waiting):
         return float("nan")
-    return float(1.0 - unnecessary_waiting / baseline_waiting)
+    share = 1.0 - unnecessary_waiting / baseline_waiting
+    return 0.0 if abs(share) < 1e-12 else float(share)  # the baseline itself: sums in another order round apart
 
 
 def contact_metrics(events: list[dict]) -> dict:
