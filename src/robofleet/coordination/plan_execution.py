@@ -292,7 +292,8 @@ class PlanExecutor:
 
     def decide(self, state: ExecutionState, t: int) -> Decision:
         """Step ``t``'s decisions: flip tests (TFF/TFA), first come (BTPG) or the optimal orders
-        (every ``optimal.period`` steps), then Eq. 1; flags a deadlock (Definition 1)."""
+        (every ``optimal.period`` steps, and when a robot stopped where the order may change
+        calls one), then Eq. 1; flags a deadlock (Definition 1)."""
         if self.variant.flips_when_blocked:
             self._flip_round(state.rule, state.labels, state.x, state.tried, state.detector, state.stats, state.events, t)
         elif state.orders is not None:
