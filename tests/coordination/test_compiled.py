@@ -23,7 +23,7 @@ from robofleet.coordination.segment_graph import IncrementalCycleDetector, build
 from robofleet.coordination.trajectories import make_trajectories
 from robofleet.core.rng import keyed_generator
 
-TIMING = {"decision_seconds", "plan_seconds", "wall_seconds"}
+TIMING = {"decision_seconds", "plan_seconds", "wall_seconds", "step_decision_seconds", "offline_seconds"}
 
 
 # ---------------------------------------------------------------- plain steps

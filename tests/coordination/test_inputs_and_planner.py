@@ -139,7 +139,8 @@ def test_simulate_is_deterministic_and_safe():
     spec = load_scenario(BASE)
     a, b = simulate(spec, seed=7), simulate(spec, seed=7)
     assert np.array_equal(a.positions, b.positions)
-    assert a.results == {**b.results, "decision_seconds": a.results["decision_seconds"]}
+    timings = {k: v for k, v in a.results.items() if k.endswith("_seconds")}  # wall times differ by nature
+    assert a.results == {**b.results, **timings}
     summary = a.summary()
     assert summary["finished"] and not summary["deadlock"] and summary["collisions"] == 0
     assert summary["collision_events"] == 0
@@ -155,7 +156,7 @@ def test_learned_estimate_runs():
     ({"disturbance.base_probability": 1.0}, "disturbance.base_probability"),
     ({"disturbance.region_probability": -0.1}, "disturbance.region_probability"),
     ({"robots.radius": 0}, "robots.radius"),
-    ({"policy.method": "fast"}, r"policy.method: expected 'rmtrack', 'tff' or 'tfa'"),
+    ({"policy.method": "fast"}, r"policy.method: expected 'rmtrack', 'tff', 'tfa', 'btpg' or 'optimal'"),
     ({"policy.estimate": "guess"}, "policy.estimate"),
     ({"robots.colour": "red"}, "robots.colour: expected no such key"),
 ])

@@ -2,8 +2,10 @@
 
 RMTRACK (Eq. 1), label flipping (RMTRACK+TFF, RMTRACK+TFA), the segment graph
 (Definition 3) with incremental and full cycle tests, the theory checks (Definition 4,
-Theorem 4), a revised prioritized planner for the initial plans and the X-plus-corridor
-map of Fig. 1. The family contract: :class:`Spec` (``spec.py``), :func:`simulate`
+Theorem 4), a revised prioritized planner for the initial plans, the X-plus-corridor
+map of Fig. 1 and a warehouse grid; and, on the same instances and loop, the peers of
+label flipping: BTPG (:mod:`.btpg`) and the optimal passing orders within a horizon
+(:mod:`.optimal`). The family contract: :class:`Spec` (``spec.py``), :func:`simulate`
 (``simulation.py``), the per-run results (``metrics.py``), :func:`check`
 (``guarantees.py``) and ``FAMILY`` (``family.py``).
 """

@@ -59,7 +59,7 @@ def check(spec: Spec, seed: int = 0) -> list[Guarantee]:
 
 def instance_note(spec: Spec, seed: int) -> str:
     """`` (instance of run seed s)`` when the checked instance depends on the run seed, else ``""``."""
-    drawn = spec.robots.placement == "flows" and spec.robots.instance_seed is None and spec.trajectories is None
+    drawn = spec.robots.placement != "explicit" and spec.robots.instance_seed is None and spec.trajectories is None
     return f" (instance of run seed {seed}; robots.instance_seed is null)" if drawn else ""
 
 
@@ -117,12 +117,23 @@ def deadlock_guarantee(spec: Spec, report: TheoryReport, where: str = "") -> Gua
       check is conservative.
     * flips without the check — no deadlock when Definition 4 and Theorem 4's condition
       both hold (no flip closes a cycle, and only cycles deadlock).
+    * ``method: btpg`` — every labeling first come can produce is acyclic (the offline
+      classification, :mod:`.btpg`); no deadlock iff Definition 4 holds (Theorems 1, 2).
+    * ``method: optimal`` — every labeling kept leaves the segment graph acyclic
+      (:mod:`.optimal`); no deadlock iff Definition 4 holds (Theorems 1, 2).
     """
     policy = spec.policy
     name = "no deadlock under this policy"
     if policy.method is Method.RMTRACK:
         return Guarantee(name, "RMTRACK, Čáp, Gregoire & Frazzoli 2016", True,
                          consequence=f"method rmtrack keeps the plan's order: the robot furthest behind is never blocked{where}")
+    if policy.method in (Method.BTPG, Method.OPTIMAL):
+        how = ("only obstacles whose switch closes no cycle under any labeling switch (offline classification)"
+               if policy.method is Method.BTPG else "every labeling chosen keeps the segment graph acyclic")
+        return Guarantee(name, "Theorems 1, 2", report.non_conflicting,
+                         detail=(f"method {policy.method.value}: {how}, but Definition 4 fails: a deadlock need not close a "
+                                 f"cycle{where}"),
+                         consequence=f"method {policy.method.value}: {how}; only a cycle deadlocks{where}")
     flips = f"method {policy.method.value}"
     if policy.deadlock_check:
         graph = ("the literal Definition 3 graph, conservative: it may refuse harmless flips"

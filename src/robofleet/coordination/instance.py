@@ -26,7 +26,7 @@ from ..core.errors import InfeasibleError
 from ..core.rng import keyed_generator
 from ..core.workspace import Workspace
 from .coordination_space import CoordinationSpace, build_coordination_space
-from .maps import sample_flow_instance
+from .maps import sample_flow_instance, sample_station_instance
 from .planner import PlannerSettings, plan_prioritized
 from .spec import Spec
 from .theory import TheoryReport, check_theory
@@ -145,11 +145,14 @@ def planned_instance(request: PlanRequest) -> Instance:
 
 
 def robot_endpoints(spec: Spec, workspace: Workspace, instance_seed: int | None, attempt: int = 0) -> tuple[np.ndarray, np.ndarray]:
-    """Starts and goals: explicit, or draw ``attempt`` of the flows' boxes from ``instance_seed``."""
+    """Starts and goals: explicit, or draw ``attempt`` of the flows' boxes (or of the
+    warehouse's stations) from ``instance_seed``."""
     r = spec.robots
     if r.placement == "explicit":
         return np.asarray(r.starts, float), np.asarray(r.goals, float)
     keys = ("instance",) if attempt == 0 else ("instance", attempt)
+    if r.placement == "stations":
+        return sample_station_instance(r.n, keyed_generator(instance_seed, *keys))
     return sample_flow_instance(workspace, r.n, r.radius, keyed_generator(instance_seed, *keys))
 
 

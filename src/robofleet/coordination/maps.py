@@ -114,3 +114,61 @@ def sample_flow_instance(workspace: Workspace, n_robots: int, radius: float, rng
             else:
                 raise InfeasibleError(f"robots: expected room for {n_robots} robots in the flow boxes, received none for robot {i}")
     return starts, goals
+
+
+# -- a warehouse of shelves (the grid instances of ``robofleet reproduce coordination-peers``) --------------
+WAREHOUSE_COLUMNS, WAREHOUSE_ROWS = 8, 7
+WAREHOUSE_SHELF = (375.0, 150.0)
+WAREHOUSE_AISLE = 225.0
+WAREHOUSE_MARGIN = 225.0
+STATION_GAP = 30.0
+"""Distance of a station's centre from its shelf's face."""
+STATION_PITCH = 75.0
+WAREHOUSE_DISTURBANCE = np.array([[2200.0, 1150.0], [2800.0, 1150.0], [2800.0, 1650.0], [2200.0, 1650.0]])
+"""The warehouse's disturbance region: a patch of floor in the middle, where the east-west traffic crosses."""
+
+
+def warehouse_extent() -> tuple[float, float]:
+    """Width and height of the warehouse (5025 × 2850 with the constants above)."""
+    width = 2 * WAREHOUSE_MARGIN + WAREHOUSE_COLUMNS * WAREHOUSE_SHELF[0] + (WAREHOUSE_COLUMNS - 1) * WAREHOUSE_AISLE
+    height = 2 * WAREHOUSE_MARGIN + WAREHOUSE_ROWS * WAREHOUSE_SHELF[1] + (WAREHOUSE_ROWS - 1) * WAREHOUSE_AISLE
+    return width, height
+
+
+def warehouse_shelf_corners() -> np.ndarray:
+    """Lower-left corners ``(columns · rows, 2)`` of the shelves, column by column."""
+    c, r = np.meshgrid(np.arange(WAREHOUSE_COLUMNS), np.arange(WAREHOUSE_ROWS), indexing="ij")
+    x = WAREHOUSE_MARGIN + c.ravel() * (WAREHOUSE_SHELF[0] + WAREHOUSE_AISLE)
+    y = WAREHOUSE_MARGIN + r.ravel() * (WAREHOUSE_SHELF[1] + WAREHOUSE_AISLE)
+    return np.column_stack([x, y])
+
+
+def warehouse_workspace(region_probability: float = 0.85) -> Workspace:
+    """A warehouse-like grid map: ``8 × 7`` shelves of ``375 × 150`` with aisles of ``225``
+    (room for two robots of radius 15 to pass a robot parked at a shelf) in a rectangle,
+    and a disturbance region in the middle (:data:`WAREHOUSE_DISTURBANCE`)."""
+    width, height = warehouse_extent()
+    w, h = WAREHOUSE_SHELF
+    shelves = tuple(np.array([[x, y], [x + w, y], [x + w, y + h], [x, y + h]]) for x, y in warehouse_shelf_corners())
+    region = Region("disturbance", WAREHOUSE_DISTURBANCE.copy(), {"probability": float(region_probability)})
+    return Workspace.rectangle(0.0, 0.0, width, height, shelves, (region,))
+
+
+def warehouse_stations() -> np.ndarray:
+    """Pick stations ``(k, 2)``: along both long faces of every shelf, ``STATION_PITCH``
+    apart and ``STATION_GAP`` from the face (4 per face, 448 in all), leaving the middle
+    of each aisle free."""
+    offsets = np.arange(STATION_PITCH, WAREHOUSE_SHELF[0] - 1.0, STATION_PITCH)
+    corners = warehouse_shelf_corners()
+    below = np.stack([corners[:, None, 0] + offsets[None], np.repeat(corners[:, 1:2] - STATION_GAP, len(offsets), axis=1)], -1)
+    above = below + np.array([0.0, WAREHOUSE_SHELF[1] + 2 * STATION_GAP])
+    return np.concatenate([below.reshape(-1, 2), above.reshape(-1, 2)])
+
+
+def sample_station_instance(n_robots: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    """Starts and goals at ``2 n`` distinct random stations of the warehouse (:func:`warehouse_stations`)."""
+    stations = warehouse_stations()
+    if 2 * n_robots > len(stations):
+        raise InfeasibleError(f"robots.count: expected at most {len(stations) // 2} robots (two stations each), received {n_robots}")
+    pick = rng.choice(len(stations), 2 * n_robots, replace=False)
+    return stations[pick[:n_robots]].copy(), stations[pick[n_robots:]].copy()

@@ -1,7 +1,10 @@
 """Discrete-step execution of a plan under disturbances (the label-flipping deadlock paper (2021), "Problem Statement").
 
-Each step every robot chooses ``a_i(t)`` by RMTRACK (Eq. 1), possibly after flip tests
-(TFF/TFA, optionally guarded by the segment-graph cycle test); the disturbance
+Each step every robot chooses ``a_i(t)`` by RMTRACK (Eq. 1), possibly after the labels
+changed: by flip tests (TFF/TFA, optionally guarded by the segment-graph cycle test), by
+BTPG's first-come rule on the obstacles classified switchable offline (:mod:`.btpg`), or,
+every few steps, by the ``optimal`` search over the open obstacles' labels
+(:mod:`.optimal`); the disturbance
 ``δ_i(t) = 0`` with the probability of the region the robot stands in; then
 ``x_i(t + 1) = x_i(t) + a_i(t) δ_i(t)``. A run ends when every robot is finished, on a
 deadlock (Definition 1: at least one robot waiting and none moving) or after
@@ -28,8 +31,10 @@ from typing import Callable
 import numpy as np
 
 from ..core.rng import keyed_generator
+from .btpg import DEFAULT_VISIT_BUDGET, Classification, classify_switchable, first_come
 from .coordination_space import CoordinationSpace
 from .label_flipping import FlipContext, KnownProbabilities, LearnedProbabilities, flip_eligible, tfa_wants_flip, tff_wants_flip
+from .optimal import OptimalOrders, OptimalSettings
 from .plain_steps import PlainStepRows, run_plain_steps, space_arrays
 from .rmtrack import ActionRule
 from .segment_graph import IncrementalCycleDetector, Resolution, SegmentLayout, build_segment_layout, has_cycle_full
@@ -41,11 +46,14 @@ DISTURBANCE_CACHE_BLOCKS = 128
 
 
 class Method(str, Enum):
-    """Execution policy: plain RMTRACK or RMTRACK with a flip test."""
+    """Execution policy: plain RMTRACK, RMTRACK with a flip test, BTPG (first come on the
+    offline-classified switchable obstacles) or the optimal orders within a horizon."""
 
     RMTRACK = "rmtrack"
     TFF = "tff"
     TFA = "tfa"
+    BTPG = "btpg"
+    OPTIMAL = "optimal"
 
 
 class Estimate(str, Enum):
@@ -55,23 +63,38 @@ class Estimate(str, Enum):
     LEARNED = "learned"
 
 
-METHOD_NAMES = {Method.RMTRACK: "RMTRACK", Method.TFF: "RMTRACK+TFF", Method.TFA: "RMTRACK+TFA"}
-FLIP_TESTS: dict[Method, Callable[[FlipContext], bool]] = {Method.TFF: tff_wants_flip, Method.TFA: tfa_wants_flip}
+PAPER_METHODS = (Method.RMTRACK, Method.TFF, Method.TFA)
+"""The methods of the label-flipping deadlock paper (Fig. 6), which take the deadlock check as an option."""
+METHOD_NAMES = {Method.RMTRACK: "RMTRACK", Method.TFF: "RMTRACK+TFF", Method.TFA: "RMTRACK+TFA", Method.BTPG: "BTPG",
+                Method.OPTIMAL: "optimal"}
+FLIP_TESTS: dict[Method, Callable[[FlipContext], bool]] = {Method.TFF: tff_wants_flip, Method.TFA: tfa_wants_flip,
+                                                           Method.BTPG: first_come}
 
 
 @dataclass(frozen=True)
 class Variant:
-    """One of the six method variants of Fig. 6."""
+    """A method and whether its flips are guarded by the segment-graph cycle test.
+
+    The check is an option of the paper's methods only: BTPG and ``optimal`` keep the
+    segment graph acyclic by construction and ignore it (their name carries no suffix).
+    """
 
     method: Method
     deadlock_check: bool
 
     @property
     def name(self) -> str:
-        return METHOD_NAMES[self.method] + (" (checked)" if self.deadlock_check else "")
+        checked = self.deadlock_check and self.method in PAPER_METHODS
+        return METHOD_NAMES[self.method] + (" (checked)" if checked else "")
+
+    @property
+    def flips_when_blocked(self) -> bool:
+        """A robot stopped at an obstacle is offered a flip (TFF, TFA, BTPG)."""
+        return self.method in (Method.TFF, Method.TFA, Method.BTPG)
 
 
-ALL_VARIANTS = tuple(Variant(m, c) for m in Method for c in (False, True))
+ALL_VARIANTS = tuple(Variant(m, c) for m in PAPER_METHODS for c in (False, True))
+"""The six variants of Fig. 6."""
 
 
 class DisturbanceStream:
@@ -106,7 +129,9 @@ class Execution:
 
     ``progress`` ``(T + 1, n)``: ``x_i(t)``; ``waiting`` ``(T + 1, n)``: state at each step
     (the last row repeats the final state). ``decision_seconds``: wall time spent in flip
-    tests and cycle checks.
+    tests, cycle checks and ``optimal`` decisions; ``stats``: every counter of the run
+    (also ``decisions``, ``exhausted``, ``expansions`` of ``optimal``, ``offline_seconds``
+    and ``switchable`` of BTPG).
     """
 
     progress: np.ndarray
@@ -122,6 +147,7 @@ class Execution:
     decision_seconds: float
     arrival_steps: np.ndarray
     cycle_log: list = field(default_factory=list)
+    stats: dict = field(default_factory=dict)
 
     @property
     def n_steps(self) -> int:
@@ -159,9 +185,12 @@ class ExecutionState:
     rule: ActionRule
     arrival: np.ndarray
     events: list[dict]
-    stats: dict = field(default_factory=lambda: {"flips": 0, "refused": 0, "tests": 0, "seconds": 0.0, "collisions": 0})
+    stats: dict = field(default_factory=lambda: {"flips": 0, "refused": 0, "tests": 0, "seconds": 0.0, "collisions": 0,
+                                                 "decisions": 0, "exhausted": 0, "expansions": 0, "offline_seconds": 0.0,
+                                                 "switchable": 0})
     deadlock: bool = False
     cycle_log: list = field(default_factory=list)
+    orders: OptimalOrders | None = None
 
 
 @dataclass
@@ -194,6 +223,10 @@ class PlanExecutor:
     compiled:
         run the plain steps in compiled code (:mod:`.plain_steps`; the same trace);
         ``False`` runs every step through the numpy code (tests compare the two).
+    optimal:
+        horizon, node budget and decision period of ``method: optimal``.
+    btpg_budget:
+        vertices BTPG's offline classification may visit (:func:`.btpg.classify_switchable`).
     """
 
     traj: Trajectories
@@ -209,6 +242,8 @@ class PlanExecutor:
     observe_cells: np.ndarray | None = None
     record_cycles: bool = False
     compiled: bool = True
+    optimal: OptimalSettings = OptimalSettings()
+    btpg_budget: int = DEFAULT_VISIT_BUDGET
 
     def run(self, seed: int, max_steps: int) -> Execution:
         """Execute until all robots finish, a deadlock or ``max_steps``.
@@ -240,16 +275,31 @@ class PlanExecutor:
         """The state at ``t = 0``: plan labels, everybody at step 0; ``events`` collects the run's events."""
         n = self.traj.n_robots
         labels = self.space.initial_labels.copy()
-        return ExecutionState(
-            x=np.zeros(n, dtype=np.intp), labels=labels, tried=np.zeros(self.space.n_obstacles, dtype=bool),
+        tried = np.zeros(self.space.n_obstacles, dtype=bool)
+        state = ExecutionState(
+            x=np.zeros(n, dtype=np.intp), labels=labels, tried=tried,
             detector=self._detector(labels), stream=DisturbanceStream(seed, n), rule=ActionRule(self.space),
             arrival=np.where(self.traj.lengths == 0, 0, -1), events=[] if events is None else events,
         )
+        if self.variant.method is Method.BTPG:  # fixed obstacles are never offered: they count as settled
+            classification = self.btpg_classification
+            tried |= ~classification.switchable
+            state.stats["offline_seconds"] = classification.seconds
+            state.stats["switchable"] = classification.n_switchable
+        elif self.variant.method is Method.OPTIMAL:
+            state.orders = OptimalOrders(self.space, self.exact_layout, self.optimal, self.traj.dt)
+        return state
 
     def decide(self, state: ExecutionState, t: int) -> Decision:
-        """Step ``t``'s decisions: flip tests (TFF/TFA), then Eq. 1; flags a deadlock (Definition 1)."""
-        if self.variant.method is not Method.RMTRACK:
+        """Step ``t``'s decisions: flip tests (TFF/TFA), first come (BTPG) or the optimal orders
+        (every ``optimal.period`` steps, and when a robot stopped where the order may change
+        calls one), then Eq. 1; flags a deadlock (Definition 1)."""
+        if self.variant.flips_when_blocked:
             self._flip_round(state.rule, state.labels, state.x, state.tried, state.detector, state.stats, state.events, t)
+        elif state.orders is not None:
+            called = state.orders.call(state.rule.blocking_sides(state.labels, state.x), state.x, state.tried)
+            if called or state.orders.due(t):
+                self._optimal_round(state, t)
         waiting, moving, finished = state.rule.states(state.labels, state.x)
         if self.record_cycles:
             state.cycle_log.append(self._cycle_now(state.labels, state.x))
@@ -269,10 +319,15 @@ class PlanExecutor:
         if not self.compiles:
             return k, decision
         block = k // DISTURBANCE_BLOCK
+        stop = (block + 1) * DISTURBANCE_BLOCK
+        quiet = state.tried
+        if state.orders is not None:  # the next periodic decision, and a robot stopped where it calls one, run through ``decide``
+            stop = min(stop, state.orders.next_decision(k) - 1)
+            quiet = state.orders.quiet(state.tried)
         moving, waiting = decision.moving.copy(), decision.waiting.copy()
         done = run_plain_steps(
-            k, (block + 1) * DISTURBANCE_BLOCK, max_steps, state.stream.block(block), block * DISTURBANCE_BLOCK, state.x, moving,
-            waiting, state.labels, state.tried, self.variant.method is not Method.RMTRACK, self.probability, self.traj.positions,
+            k, stop, max_steps, state.stream.block(block), block * DISTURBANCE_BLOCK, state.x, moving,
+            waiting, state.labels, quiet, self.variant.method is not Method.RMTRACK, self.probability, self.traj.positions,
             self.traj.lengths, (2 * self.traj.radius) ** 2, self.side_arrays, rows.disturbed, rows.progress, rows.waiting,
         )
         if done == k:
@@ -287,6 +342,18 @@ class PlanExecutor:
     @functools.cached_property
     def side_arrays(self) -> tuple[np.ndarray, ...]:
         return space_arrays(self.space)
+
+    @functools.cached_property
+    def exact_layout(self) -> SegmentLayout:
+        """The segment layout with the exact resolution (BTPG and ``optimal`` reason on it)."""
+        if self.layout is not None and self.layout.resolution is Resolution.EXACT:
+            return self.layout
+        return build_segment_layout(self.space, Resolution.EXACT)
+
+    @functools.cached_property
+    def btpg_classification(self) -> Classification:
+        """BTPG's offline classification of the plan's obstacles (computed once per executor)."""
+        return classify_switchable(self.space, self.exact_layout, self.btpg_budget)
 
     def settle(self, state: ExecutionState) -> Decision:
         """Eq. 1 at the end of the step budget, without flip tests (the state the run ends in)."""
@@ -312,11 +379,11 @@ class PlanExecutor:
             progress=progress, waiting=waiting, events=state.events, labels=state.labels,
             deadlock=state.deadlock, finished=bool(np.all(state.x >= self.traj.lengths)), collisions=stats["collisions"],
             flips=stats["flips"], refused_flips=stats["refused"], flip_tests=stats["tests"],
-            decision_seconds=stats["seconds"], arrival_steps=state.arrival, cycle_log=state.cycle_log,
+            decision_seconds=stats["seconds"], arrival_steps=state.arrival, cycle_log=state.cycle_log, stats=dict(stats),
         )
 
     def _detector(self, labels: np.ndarray) -> IncrementalCycleDetector | None:
-        if not self.variant.deadlock_check or self.variant.method is Method.RMTRACK:
+        if not self.variant.deadlock_check or self.variant.method not in (Method.TFF, Method.TFA):
             return None
         if self.layout is None:
             self.layout = build_segment_layout(self.space, self.resolution)
@@ -347,6 +414,31 @@ class PlanExecutor:
             elif wanted:
                 stats["refused"] += 1
                 events.append({"step": t, "kind": "flip_refused", "robot": w, "other": a, "obstacle": obstacle})
+
+    def _optimal_round(self, state: ExecutionState, t: int) -> None:
+        """The ``optimal`` decision at step ``t``: relabel the open obstacles as the search chose
+        (obstacles in ``tried`` stay closed: the supervisor marks those whose label robot may
+        already have reached them)."""
+        t0 = time.perf_counter()
+        probability = self.times.probability if isinstance(self.times, KnownProbabilities) else self._learned_probability()
+        solution = state.orders.decide(state.labels, state.x, state.tried, t, probability, state.arrival)
+        stats = state.stats
+        if solution is not None:
+            stats["decisions"] += 1
+            stats["exhausted"] += int(solution.exhausted)
+            stats["refused"] += int(solution.reverted)
+            stats["expansions"] += solution.expansions
+            for o in np.flatnonzero(solution.labels != state.labels).tolist():
+                w, a = int(solution.labels[o]), int(state.labels[o])
+                stats["flips"] += 1
+                state.events.append({"step": t, "kind": "flip", "robot": w, "other": a, "obstacle": o})
+            state.labels[:] = solution.labels
+        stats["seconds"] += time.perf_counter() - t0
+
+    def _learned_probability(self) -> np.ndarray:
+        """``(n, K_max + 1)`` the learned estimate at every plan step."""
+        width = self.traj.positions.shape[1]
+        return np.stack([self.times.probabilities(r, 0, width) for r in range(self.traj.n_robots)])
 
     def _advance(self, x, moving, t, stream) -> tuple[np.ndarray, np.ndarray]:
         """``x(t + 1) = x(t) + a(t) δ(t)``; also returns which robots were disturbed."""

@@ -105,14 +105,32 @@ def check_valid_infrastructure(roadmap: Roadmap, starts: np.ndarray, goals: np.n
     n = len(starts)
     if endpoint_distances is None:
         endpoint_distances = roadmap.distances_to_edges(np.concatenate([starts, goals]))
+    clear = clear_of_other_endpoints(endpoint_distances, n, 2 * radius)
     for i in range(n):
-        others = np.delete(endpoint_distances, [i, n + i], axis=0)
-        ok_edges = _clear_of(others, len(roadmap.edges), 2 * radius)
+        ok_edges = clear[i]
         if not np.isfinite(_distances(roadmap, ok_edges, int(goal_nodes[i]))[start_nodes[i]]):
             raise InfeasibleError(
                 f"robots[{i}]: expected a valid infrastructure (a path from start {starts[i].round(1).tolist()} to goal "
                 f"{goals[i].round(1).tolist()} avoiding the other robots' starts and goals), received none"
             )
+
+
+def clear_of_other_endpoints(endpoint_distances: np.ndarray, n: int, reach: float) -> np.ndarray:
+    """``(n, E)``: the edges whose segment keeps distance ``≥ reach`` from every start and
+    goal but robot ``i``'s own (``endpoint_distances`` ``(2n, E)``, starts then goals) —
+    :func:`_clear_of` of the other rows, for all robots in ``O(n E)``."""
+    near = endpoint_distances < reach
+    return (near.sum(axis=0)[None, :] - near[:n] - near[n:]) == 0
+
+
+def clear_of_later_starts(endpoint_distances: np.ndarray, n: int, reach: float) -> np.ndarray:
+    """``(n, E)``: the edges whose segment keeps distance ``≥ reach`` from the starts of
+    robots ``i + 1 … n − 1`` (the lower-priority robots of robot ``i``) — :func:`_clear_of`
+    of those rows, for all robots in ``O(n E)``."""
+    near = endpoint_distances[:n] < reach
+    later = np.zeros_like(near)
+    later[:-1] = np.logical_or.accumulate(near[::-1], axis=0)[::-1][1:]
+    return ~later
 
 
 def _clear_of(distances: np.ndarray, n_edges: int, reach: float) -> np.ndarray:
@@ -156,8 +174,9 @@ def plan_prioritized(workspace: Workspace, starts: np.ndarray, goals: np.ndarray
     if check_infrastructure:
         check_valid_infrastructure(roadmap, starts, goals, settings.radius, start_nodes, goal_nodes, endpoint_distances)
     paths: list[np.ndarray] = []
+    clear = clear_of_later_starts(endpoint_distances, n, 2 * settings.radius)
     for i in range(n):
-        edge_ok = _clear_of(endpoint_distances[i + 1:n], len(roadmap.edges), 2 * settings.radius)
+        edge_ok = clear[i]
         search = SpaceTimeSearch(roadmap, settings, start_nodes[i], goal_nodes[i], np.asarray(paths_to_array(paths)), edge_ok)
         path = search.run()
         if path is None:
@@ -203,6 +222,7 @@ class SpaceTimeSearch:
         self.roadmap, self.s = roadmap, settings
         self.start, self.goal = int(start), int(goal)
         self.higher = higher  # (T, m, 2)
+        self.boxes = window_boxes(higher, PRUNE_WINDOW)
         self.reach2 = (2 * settings.radius) ** 2
         step_len = settings.speed * settings.dt
         self.duration = np.maximum(1, np.ceil(roadmap.lengths / step_len - 1e-9)).astype(int)
@@ -231,7 +251,8 @@ class SpaceTimeSearch:
         """The trajectory ``(K + 1, 2)``, or ``None`` if none is found within the limits."""
         chain = space_time_astar(
             self.roadmap.nodes, self.adj_ptr, self.adj_to, self.adj_dur, self.h, np.ascontiguousarray(self.higher, dtype=float),
-            self.reach2, self.start, self.goal, self.goal_free_from, self.s.wait_steps, self.s.max_steps, self.s.max_expansions,
+            self.boxes, PRUNE_WINDOW, self.reach2, self.start, self.goal, self.goal_free_from, self.s.wait_steps, self.s.max_steps,
+            self.s.max_expansions,
         )
         if len(chain) == 0:
             return None
@@ -248,19 +269,47 @@ class SpaceTimeSearch:
         return np.concatenate(out)
 
 
+PRUNE_WINDOW = 16
+"""Steps per window of the higher-priority robots' bounding boxes (:func:`window_boxes`)."""
+
+
+def window_boxes(higher: np.ndarray, window: int) -> np.ndarray:
+    """Bounding boxes ``(n_windows, m, 4)`` (xmin, ymin, xmax, ymax) of each higher-priority
+    robot over each window of ``window`` steps of ``higher`` ``(T, m, 2)``."""
+    t, m, _ = higher.shape
+    n_windows = -(-t // window)
+    padded = np.concatenate([higher, np.repeat(higher[-1:], n_windows * window - t, axis=0)]).reshape(n_windows, window, m, 2)
+    return np.ascontiguousarray(np.concatenate([padded.min(axis=1), padded.max(axis=1)], axis=-1))
+
+
 @numba.njit(cache=True)
-def _move_clear(higher, reach2, ax, ay, bx, by, t0, d):
+def _move_clear(higher, boxes, window, reach2, ax, ay, bx, by, t0, d):
     """Does the straight move ``a → b`` over steps ``t0 + 1 … t0 + d`` keep ``≥ 2r`` from every
     higher-priority robot (position at step ``k`` clamped to the last planned step)?
 
-    Point ``k`` of the move is ``a + (b − a)·(k / d)``, the sample the trajectory records. ``O(d m)``.
+    Point ``k`` of the move is ``a + (b − a)·(k / d)``, the sample the trajectory records.
+    A robot whose bounding boxes over the move's windows of ``window`` steps
+    (:func:`window_boxes`) lie at least ``2r`` (plus a rounding margin) from the move's
+    bounding box along some axis cannot come within ``2r`` of any sample, so its samples
+    are not compared: the answer is the one of comparing every sample. ``O(d m)`` at worst, ``O(m)`` box tests plus
+    ``O(d)`` per nearby robot in practice.
     """
     last = higher.shape[0] - 1
-    for k in range(1, d + 1):
-        frac = k / d
-        px, py = ax + (bx - ax) * frac, ay + (by - ay) * frac
-        row = min(t0 + k, last)
-        for j in range(higher.shape[1]):
+    reach = np.sqrt(reach2) * (1.0 + 1e-9) + 1e-9
+    x0, x1, y0, y1 = min(ax, bx), max(ax, bx), min(ay, by), max(ay, by)
+    w0, w1 = min(t0 + 1, last) // window, min(t0 + d, last) // window
+    for j in range(higher.shape[1]):
+        near = False
+        for w in range(w0, w1 + 1):
+            if boxes[w, j, 0] - x1 < reach and x0 - boxes[w, j, 2] < reach and boxes[w, j, 1] - y1 < reach and y0 - boxes[w, j, 3] < reach:
+                near = True
+                break
+        if not near:
+            continue
+        for k in range(1, d + 1):
+            frac = k / d
+            px, py = ax + (bx - ax) * frac, ay + (by - ay) * frac
+            row = min(t0 + k, last)
             dx, dy = higher[row, j, 0] - px, higher[row, j, 1] - py
             if dx * dx + dy * dy < reach2:
                 return False
@@ -282,7 +331,7 @@ def _state_chain(parent, key, n_nodes):
 
 
 @numba.njit(cache=True)
-def space_time_astar(nodes, adj_ptr, adj_to, adj_dur, h, higher, reach2, start, goal, goal_free_from, wait_steps,
+def space_time_astar(nodes, adj_ptr, adj_to, adj_dur, h, higher, boxes, window, reach2, start, goal, goal_free_from, wait_steps,
                      max_steps, max_expansions):
     """Space-time A* of one robot (RPP, Čáp et al. 2015), compiled.
 
@@ -296,7 +345,8 @@ def space_time_astar(nodes, adj_ptr, adj_to, adj_dur, h, higher, reach2, start, 
     """
     n_nodes = nodes.shape[0]
     empty = np.empty((0, 2), dtype=np.int64)
-    if higher.shape[1] > 0 and not _move_clear(higher, reach2, nodes[start, 0], nodes[start, 1], nodes[start, 0], nodes[start, 1], -1, 1):
+    if higher.shape[1] > 0 and not _move_clear(higher, boxes, window, reach2, nodes[start, 0], nodes[start, 1], nodes[start, 0],
+                                               nodes[start, 1], -1, 1):
         return empty
     heap = [(h[start], np.int64(0), np.int64(start))]
     parent = {np.int64(start): np.int64(-1)}
@@ -316,7 +366,7 @@ def space_time_astar(nodes, adj_ptr, adj_to, adj_dur, h, higher, reach2, start, 
             nxt = (t + d) * n_nodes + v
             if nxt in closed or nxt in parent or t + d > max_steps:
                 continue
-            if higher.shape[1] > 0 and not _move_clear(higher, reach2, nodes[u, 0], nodes[u, 1], nodes[v, 0], nodes[v, 1], t, d):
+            if higher.shape[1] > 0 and not _move_clear(higher, boxes, window, reach2, nodes[u, 0], nodes[u, 1], nodes[v, 0], nodes[v, 1], t, d):
                 continue
             parent[nxt] = key
             heapq.heappush(heap, (t + d + h[v], t + d, v))

@@ -86,7 +86,7 @@ def make_executor(spec: Spec, instance: Instance, workspace: Workspace, variant:
     else:
         times = KnownProbabilities(probability, traj.dt)
     return PlanExecutor(traj, instance.space, variant, times, probability, resolution=spec.policy.resolution,
-                        observe_cells=cells)
+                        observe_cells=cells, optimal=spec.policy.optimal.settings(), btpg_budget=spec.policy.btpg_budget)
 
 
 def map_cells(points: np.ndarray, workspace: Workspace, cell: float) -> np.ndarray:
@@ -193,7 +193,8 @@ def execution_trace(spec: Spec, rec: Recorder, state: ExecutionState, instance: 
         "goal_tolerance": 0.0, "base_probability": spec.disturbance.base_probability,
         "instance_seed": instance.instance_seed,
     }
-    results = run_results(variant, state, rec.arrival_steps, instance, report)
+    results = run_results(variant, state, rec.arrival_steps, instance, report, probability_map(
+        workspace, traj.positions, spec.disturbance.base_probability), rec.steps_taken, spec.simulation.max_steps)
     trace = rec.trace(FAMILY_NAME, scenario=spec.scenario_name, seed=seed, metadata=metadata, results=results,
                       workspace=workspace)
     trace.arrays["plan"] = np.transpose(traj.positions, (1, 0, 2)).copy()

@@ -11,15 +11,22 @@ Example::
 
 ``workspace``
     The shared vocabulary of :mod:`robofleet.core.spec_blocks` (``bounds``, ``obstacles``,
-    ``regions``) plus ``preset: x_corridor``, the map of the label-flipping deadlock paper (2021)'s Fig. 1 (the default).
+    ``regions``) plus ``preset: x_corridor``, the map of the label-flipping deadlock paper (2021)'s Fig. 1 (the default),
+    or ``preset: warehouse``, a grid of shelves (:func:`~.maps.warehouse_workspace`).
     Giving ``bounds`` means a map of one's own (``preset`` then defaults to null).
     Obstacles and regions given with the preset are added to the preset map. Every
     region carries the disturbance ``probability`` of the robots inside it.
 ``robots``
-    From the flows of the map (``placement: flows``: ``count`` robots in random boxes) or
-    ``explicit`` ``starts``/``goals``. The random instance comes from ``instance_seed``, or,
+    From the flows of the map (``placement: flows``: ``count`` robots in random boxes), at
+    random pick stations of the warehouse (``placement: stations``) or ``explicit``
+    ``starts``/``goals``. The random instance comes from ``instance_seed``, or,
     when it is null (the default), from the run's seed, so that a sweep over seeds gives
     one instance per seed, shared by every policy variant (a paired comparison).
+``policy``
+    ``method``: ``rmtrack``, ``tff``, ``tfa`` (the paper's, with ``deadlock_check`` as an
+    option), ``btpg`` (:mod:`.btpg`; ``btpg_budget`` bounds its offline classification) or
+    ``optimal`` (:mod:`.optimal`; its ``optimal:`` block sets the horizon, the number of
+    obstacles decided at once, the node budget and the decision period).
 ``trajectories``
     Optional plan file (``plan.csv`` with header ``robot,step,x,y``, or ``.npz``), relative
     to the scenario file; without it the prioritized planner plans the trajectories.
@@ -42,7 +49,9 @@ from ..core.errors import ScenarioError
 from ..core.rng import MAX_SEED
 from ..core.spec_blocks import Point, RegionSpec, WorkspaceSpec
 from ..core.workspace import Workspace
-from .maps import x_corridor_workspace
+from .btpg import DEFAULT_VISIT_BUDGET
+from .maps import warehouse_stations, warehouse_workspace, x_corridor_workspace
+from .optimal import OptimalSettings
 from .plan_execution import Estimate, Method
 from .planner import check_endpoints
 from .segment_graph import Resolution
@@ -65,7 +74,7 @@ class CoordinationWorkspaceSpec(WorkspaceSpec):
     the preset map; giving ``bounds`` without ``preset`` means a map of one's own.
     """
 
-    preset: Optional[Literal["x_corridor"]] = "x_corridor"
+    preset: Optional[Literal["x_corridor", "warehouse"]] = "x_corridor"
     bounds: Optional[Union[tuple[float, float, float, float], list[Point]]] = None
     regions: list[DisturbanceRegionSpec] = Field(default_factory=list)
 
@@ -95,7 +104,7 @@ class CoordinationWorkspaceSpec(WorkspaceSpec):
         """The workspace; the preset's own disturbance region has ``region_probability``."""
         if self.preset is None:
             return super().build()
-        base = x_corridor_workspace(region_probability)
+        base = (warehouse_workspace if self.preset == "warehouse" else x_corridor_workspace)(region_probability)
         return Workspace(base.bounds, base.obstacles + tuple(self.obstacle_polygons()),
                          base.regions + tuple(r.build() for r in self.regions))
 
@@ -114,7 +123,7 @@ class RobotsSpec(SpecModel):
     count: Optional[int] = Field(None, ge=1)
     radius: float = Field(15.0, gt=0.0)
     speed: float = Field(50.0, gt=0.0)
-    placement: Literal["flows", "explicit"] = "flows"
+    placement: Literal["flows", "explicit", "stations"] = "flows"
     instance_seed: Optional[int] = Field(None, ge=0, le=MAX_SEED)
     starts: Optional[list[list[float]]] = None
     goals: Optional[list[list[float]]] = None
@@ -130,7 +139,10 @@ class RobotsSpec(SpecModel):
             if self.count is not None and self.count != len(s):
                 raise ScenarioError("count", f"{len(s)} (the number of starts)", self.count)
         elif self.count is None:
-            raise ScenarioError("count", "a robot count with placement: flows", None)
+            raise ScenarioError("count", f"a robot count with placement: {self.placement}", None)
+        elif self.placement == "stations" and 2 * self.count > len(warehouse_stations()):
+            raise ScenarioError("count", f"at most {len(warehouse_stations()) // 2} robots with placement: stations (two stations each)",
+                                self.count)
         return self
 
     @property
@@ -139,15 +151,30 @@ class RobotsSpec(SpecModel):
         return len(self.starts) if self.placement == "explicit" else int(self.count)
 
 
+class OptimalSpec(SpecModel):
+    """``policy.optimal``: the search of ``method: optimal`` (:class:`~.optimal.OptimalSettings`)."""
+
+    horizon: int = Field(OptimalSettings.horizon, ge=1)
+    max_open: int = Field(OptimalSettings.max_open, ge=1)
+    node_budget: int = Field(OptimalSettings.node_budget, ge=0)
+    period: int = Field(OptimalSettings.period, ge=1)
+
+    def settings(self) -> OptimalSettings:
+        return OptimalSettings(horizon=self.horizon, max_open=self.max_open, node_budget=self.node_budget, period=self.period)
+
+
 class PolicySpec(SpecModel):
-    """The execution policy: RMTRACK alone or with a flip test, the deadlock check, and
-    where the flip tests' probabilities come from."""
+    """The execution policy: RMTRACK alone, with a flip test or BTPG's first-come rule, or
+    the optimal orders; the deadlock check of the flip tests, and where the expected
+    travel times' probabilities come from."""
 
     method: Method = Method.TFA
     deadlock_check: bool = True
     estimate: Estimate = Estimate.KNOWN
     resolution: Resolution = Resolution.EXACT
     learned_cell: float = Field(150.0, gt=0.0)
+    btpg_budget: int = Field(DEFAULT_VISIT_BUDGET, ge=0)
+    optimal: OptimalSpec = OptimalSpec()
 
 
 class SimulationSpec(SpecModel):
@@ -178,6 +205,14 @@ class Spec(SpecModel):
     policy: PolicySpec = PolicySpec()
     simulation: SimulationSpec = SimulationSpec()
     planner: PlannerSpec = PlannerSpec()
+
+    @model_validator(mode="after")
+    def _stations_need_the_warehouse(self):
+        """``placement: stations`` draws from the warehouse's pick stations."""
+        if self.robots.placement == "stations" and self.workspace.preset != "warehouse":
+            raise ScenarioError("robots.placement", "stations only with workspace preset warehouse (its pick stations)",
+                                f"stations with preset {self.workspace.preset}")
+        return self
 
     @model_validator(mode="after")
     def _endpoints_free(self):

@@ -69,6 +69,46 @@ def plot_fig6(summary: pd.DataFrame, path: str | Path) -> Path:
     return save_figure(fig, path, dpi=110)
 
 
+PEER_STYLES = {
+    "RMTRACK": ("tab:gray", "o"), "RMTRACK+TFF (checked)": ("tab:blue", "s"), "RMTRACK+TFA (checked)": ("tab:red", "^"),
+    "BTPG": ("tab:green", "D"), "optimal": ("tab:purple", "*"),
+}
+PEER_PANELS = (
+    ("waiting_removed", "unnecessary waiting removed vs RMTRACK [share]", "linear"),
+    ("decision_ms_per_step", "decision time [ms per step]", "log"),
+)
+
+
+def plot_peers(summary: pd.DataFrame, path: str | Path) -> Path:
+    """The peers comparison: per map (columns), the share of RMTRACK's unnecessary waiting
+    each method removes and its decision time per step, against the robot count.
+
+    ``summary`` has columns ``map``, ``n_robots``, ``method`` and the panels' columns
+    (``waiting_removed``, ``decision_ms_per_step``).
+    """
+    maps = list(summary["map"].drop_duplicates()) or [""]
+    fig, axes = plt.subplots(len(PEER_PANELS), len(maps), figsize=(5.5 * len(maps), 7.5), squeeze=False)
+    for col, name in enumerate(maps):
+        part = summary[summary["map"] == name]
+        for row, (column, title, scale) in enumerate(PEER_PANELS):
+            ax = axes[row, col]
+            for method in part["method"].drop_duplicates():
+                color, marker = PEER_STYLES.get(str(method), ("k", "."))
+                g = part[part["method"] == method].sort_values("n_robots")
+                values = g[column].where(g[column] > 0) if scale == "log" else g[column]
+                ax.plot(g["n_robots"], values, color=color, marker=marker, label=str(method))
+            ax.set_yscale(scale)
+            ax.set_title(f"{name}: {title}", fontsize=9)
+            ax.set_xlabel("number of robots")
+            ax.set_xticks(sorted(part["n_robots"].unique()))
+            ax.grid(alpha=0.3)
+    axes[0, 0].legend(fontsize=8)
+    fig.suptitle("reproduce coordination-peers: RMTRACK, TFF, TFA (checked), BTPG, optimal on the same plans and disturbances",
+                 fontsize=10)
+    fig.tight_layout()
+    return save_figure(fig, path, dpi=110)
+
+
 def draw_workspace(ax: plt.Axes, workspace: Workspace) -> None:
     """Bounds, obstacles and regions (disturbance regions in red, labelled with ``p``)."""
     ax.add_patch(PolygonPatch(workspace.bounds, closed=True, facecolor="white", edgecolor="black", lw=1.2))

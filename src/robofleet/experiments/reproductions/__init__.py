@@ -7,8 +7,9 @@ from __future__ import annotations
 from ..reproduction import Reproduction
 from .buavc import REPRODUCTION as BUAVC
 from .buavc_models import REPRODUCTION as BUAVC_MODELS
+from .coordination_peers import REPRODUCTION as COORDINATION_PEERS
 from .flocking import REPRODUCTION as FLOCKING
 from .rmtrack import REPRODUCTION as RMTRACK
 from .search import REPRODUCTION as SEARCH
 
-REPRODUCTIONS: dict[str, Reproduction] = {r.name: r for r in (BUAVC, BUAVC_MODELS, RMTRACK, FLOCKING, SEARCH)}
+REPRODUCTIONS: dict[str, Reproduction] = {r.name: r for r in (BUAVC, BUAVC_MODELS, RMTRACK, COORDINATION_PEERS, FLOCKING, SEARCH)}
