@@ -597,6 +597,19 @@ def _closes_cycle(side, side_ptr, edge_src, edge_dst, times, done, mark, stamp, 
 
 
 @numba.njit(cache=True)
+def _rise(w, rise, times, log, queue, queued, head, count):
+    """Raise vertex ``w``'s time to ``rise`` if that is later (logged), queueing it unless it
+    waits already; returns the queue's new length."""
+    if rise > times[w]:
+        _set(times, w, rise, log)
+        if not queued[w]:
+            queued[w] = True
+            queue[(head + count) % len(queue)] = w
+            count += 1
+    return count
+
+
+@numba.njit(cache=True)
 def _raise_times(side, side_ptr, edge_src, edge_dst, times, done, queue, queued, cumulative, step, node_robot, node_start, out_ptr,
                  out_dst, out_side, enabled, log):
     """Raise ``times`` to the earliest schedule of ``enabled`` (which now holds ``side``):
@@ -611,13 +624,7 @@ def _raise_times(side, side_ptr, edge_src, edge_dst, times, done, queue, queued,
         u, w = edge_src[e], edge_dst[e]
         if done[u] or done[w]:
             continue
-        rise = times[u] + step[node_robot[w], node_start[w] - 1]
-        if rise > times[w]:
-            _set(times, w, rise, log)
-            if not queued[w]:
-                queued[w] = True
-                queue[(head + count) % capacity] = w
-                count += 1
+        count = _rise(w, times[u] + step[node_robot[w], node_start[w] - 1], times, log, queue, queued, head, count)
     while count > 0:
         y = queue[head]
         head = (head + 1) % capacity
@@ -626,24 +633,13 @@ def _raise_times(side, side_ptr, edge_src, edge_dst, times, done, queue, queued,
         r = node_robot[y]
         nxt = y + 1
         if nxt < v and node_robot[nxt] == r and not done[nxt]:
-            rise = times[y] + cumulative[r, node_start[nxt]] - cumulative[r, node_start[y]]
-            if rise > times[nxt]:
-                _set(times, nxt, rise, log)
-                if not queued[nxt]:
-                    queued[nxt] = True
-                    queue[(head + count) % capacity] = nxt
-                    count += 1
+            count = _rise(nxt, times[y] + cumulative[r, node_start[nxt]] - cumulative[r, node_start[y]], times, log, queue, queued,
+                          head, count)
         for f in range(out_ptr[y], out_ptr[y + 1]):
             z = out_dst[f]
             if not enabled[out_side[f]] or done[z]:
                 continue
-            rise = times[y] + step[node_robot[z], node_start[z] - 1]
-            if rise > times[z]:
-                _set(times, z, rise, log)
-                if not queued[z]:
-                    queued[z] = True
-                    queue[(head + count) % capacity] = z
-                    count += 1
+            count = _rise(z, times[y] + step[node_robot[z], node_start[z] - 1], times, log, queue, queued, head, count)
 
 
 @numba.njit(cache=True)
