@@ -8,12 +8,14 @@ import json
 import shutil
 import subprocess
 
+import numpy as np
 import pytest
 import yaml
 
 from robofleet import load_scenario
 from robofleet.cli.main import main
 from robofleet.core.config import set_path
+from robofleet.core.errors import ScenarioError
 from robofleet.core.trace import Trace
 from robofleet.scenarios import path as shipped_path
 
@@ -117,3 +119,24 @@ def test_the_command_line_exits_2_without_traceback(robofleet_bin, tmp_path):
     assert result.returncode == 2 and "Traceback" not in result.stderr + result.stdout
     assert result.stderr.splitlines() == [result.stderr.strip()]
     assert result.stderr.startswith("error: --set robots.radius=-1: ") and ": robots.radius: expected" in result.stderr
+
+
+FIELDS = ["max_steps", "delta", "dt", "goal_tolerance", "local_box", "robots.n", "robots.radius", "robots.sigma",
+          "robots.v_max", "robots.layout.radius", "robots.layout.kind", "workspace.bounds", "robots.nn", "method"]
+VALUES = [-1, 0, 0.05, 0.3, 3, 12, 1e12, "abc", "orca", "circle", [1, 2], [-6, -6, 6, 6], None, True]
+
+
+def test_random_single_sets_match_the_python_api_exactly(circle_swap, capsys):
+    """Seeded random field × value pairs: ``--set`` accepts exactly what
+    ``load_scenario(file, overrides)`` accepts, and refuses the rest with its message, naming the argument."""
+    rng = np.random.default_rng(25)
+    for _ in range(40):
+        key, value = FIELDS[rng.integers(len(FIELDS))], VALUES[rng.integers(len(VALUES))]
+        argument = f"{key}={json.dumps(value)}"
+        try:
+            load_scenario(str(circle_swap), overrides={key: value})
+        except ScenarioError as exc:
+            assert error_of(["validate", str(circle_swap), "--set", argument], capsys) == f"error: --set {argument}: {exc}"
+        else:
+            main(["validate", str(circle_swap), "--set", argument])
+            assert capsys.readouterr().out.startswith(f"ok: {circle_swap} --set {argument} (avoidance)")

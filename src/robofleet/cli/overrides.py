@@ -88,28 +88,34 @@ def load_with_assignments(scenario: str, texts: list[str] | None):
 def blamed(exc: ScenarioError, assignments: list[Assignment], scenario: str) -> ConfigError | ScenarioError:
     """The error to report for ``exc``, raised by the scenario with ``assignments`` applied.
 
-    The assignments whose field is the failing field, lies inside it or holds it are named;
-    when none is, the scenario is loaded without them: if it fails alone, its own error is
-    reported (the assignments are not to blame), else every assignment is named (together
-    they made the scenario invalid, e.g. more robots than a layout holds).
+    An index into no element of a list names its assignment. Otherwise the assignments
+    whose field is the failing field, lies inside it or holds it are named; when none is,
+    the scenario is loaded without them: if it fails alone, its own error is reported (the
+    assignments are not to blame), else every assignment is named (together they made the
+    scenario invalid, e.g. a layout that no longer fits the workspace).
     """
-    field, own = exc.field, False
-    for assignment in assignments:  # an index into no element of a list (set_path's error)
-        prefix = f"overrides {assignment.key}"
-        if field == prefix or field.startswith(prefix + ": "):
-            field, own = field[len(prefix) + 2:], True
-            culprits = [assignment]
-            break
-    else:
-        culprits = [a for a in assignments if overlaps(a.key, field)]
+    indexing = list_index_error(exc, assignments)
+    if indexing is not None:
+        return indexing
+    culprits = [a for a in assignments if overlaps(a.key, exc.field)]
     if not culprits:
         try:
             load_scenario(scenario)
         except ScenarioError as alone:
             return alone
         culprits = assignments
-    error = ScenarioError(field, exc.expected, exc.received, source=exc.source) if own else exc
-    return ConfigError(f"{' '.join(map(str, culprits))}: {error}")
+    return ConfigError(f"{' '.join(map(str, culprits))}: {exc}")
+
+
+def list_index_error(exc: ScenarioError, assignments: list[Assignment]) -> ConfigError | None:
+    """``exc`` as the error of the assignment whose numeric part indexes no element of a
+    list (:func:`~robofleet.core.config.set_path`, reported under ``overrides KEY``), or ``None``."""
+    for assignment in assignments:
+        prefix = f"overrides {assignment.key}"
+        if exc.field == prefix or exc.field.startswith(prefix + ": "):
+            inner = ScenarioError(exc.field[len(prefix) + 2:], exc.expected, exc.received, source=exc.source)
+            return ConfigError(f"{assignment}: {inner}")
+    return None
 
 
 def overlaps(key: str, field: str) -> bool:
