@@ -3,7 +3,8 @@ row carries them), all judged on TRUE positions.
 
 * the motion summary of :func:`robofleet.core.metrics.motion_summary` (success, contacts,
   clearances, arrivals, travel times), extended to the 3-D box obstacles of ``space3d``;
-* the controllers' counts: deadlock detections (appendix C), empty-cell robot-steps,
+* the controllers' counts: deadlock detections (the heuristic of appendix C: firings of
+  its stuck-robot test, not proven deadlocks), empty-cell robot-steps,
   MPC fallback robot-steps;
 * the empirical collision frequencies the chance constraint speaks about: per robot pair
   and step (``pair_step_rate``, bounded by δ at every step when the premise holds), per
@@ -32,8 +33,8 @@ RESULTS: dict[str, str] = {
     "makespan": "time until the last robot arrived [s] (null unless all arrived)",
     "mean_travel_time": "mean arrival time over the robots that arrived [s]",
     "median_step_seconds": "median compute time of one step for the whole team (cells + controllers) [s]",
-    "deadlock_detections": "deadlocks detected by the heuristic of appendix C (robot-events)",
-    "livelock_detections": "of those, single-integrator detections while the robot was moving (mean commanded speed ≥ v_max/2 over the window): livelocks",
+    "deadlock_detections": "heuristic count: times the stuck-robot test of appendix C fired (too little progress towards the goal over a window, or the projected goal at the estimate), summed over robots; each firing starts a recovery, so a run that succeeds may count many, and a count is no proof of a deadlock",
+    "livelock_detections": "heuristic count: of deadlock_detections, the single-integrator firings while the robot was moving (mean commanded speed ≥ v_max/2 over the window), classed as livelocks",
     "empty_cell_steps": "robot-steps whose cell was empty (the robot held still)",
     "mpc_fallback_steps": "robot-steps where the MPC found no in-cell plan and applied the least-violating plan (or braking) instead",
     "mpc_fallback_share": "MPC fallback robot-steps over the robot-steps an MPC solved for (robots not yet arrived); null without MPC",

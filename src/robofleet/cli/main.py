@@ -48,6 +48,9 @@ WorkersOption = Annotated[Optional[int], typer.Option(min=1, help="Local worker 
 QuietOption = Annotated[bool, typer.Option("--quiet", help="No progress bar and no result table.")]
 MemoryBudgetOption = Annotated[Optional[str], typer.Option(
     "--memory-budget", help=f"Refuse runs whose arrays would need more, e.g. 8GiB (default: ${MEMORY_BUDGET_VARIABLE}, else 4GiB).")]
+SET_HELP = ("Override a scenario field: KEY=VALUE with KEY a dotted field path (robots.n=8, max_steps=200, teams.0.sigma=0.05) "
+            "and VALUE in YAML (a number, a word, [a, list]); repeatable; checked as the file is.")
+SetOption = Annotated[Optional[list[str]], typer.Option("--set", metavar="KEY=VALUE", help=SET_HELP, show_default=False)]
 
 
 class Stopped(Exception):
@@ -85,6 +88,7 @@ def run_command(
     overwrite: Annotated[bool, typer.Option("--overwrite", help="Replace an earlier run's files in --out, once the new run is complete.")] = False,
     quiet: QuietOption = False,
     memory_budget: MemoryBudgetOption = None,
+    assignments: SetOption = None,
 ) -> None:
     """Simulate a scenario; write trace.npz, trace.json, summary.json (and plot.png, animation.gif).
 
@@ -96,7 +100,7 @@ def run_command(
     use_memory_budget(memory_budget)
     if is_sweep(scenario):
         raise ConfigError(f"SCENARIO: expected a scenario file, received the sweep {scenario} (run it with `robofleet sweep`)")
-    spec = load_scenario(scenario)
+    spec = scenario_with(scenario, assignments)
     family = family_of(spec)
     seed = resolve_seed(seed, "--seed")
     out_dir = out if out is not None else Path("runs") / f"{spec.scenario_name or family.name}-seed{seed}"
@@ -169,15 +173,25 @@ def check_run_directory(out_dir: Path, overwrite: bool) -> None:
 
 @app.command("validate")
 def validate_command(scenario: Annotated[str, typer.Argument(help="A scenario or sweep: a YAML file or a shipped name.")],
-                     memory_budget: MemoryBudgetOption = None) -> None:
+                     memory_budget: MemoryBudgetOption = None, assignments: SetOption = None) -> None:
     """Check a scenario (or a sweep, every grid point of it) without running it: everything a run would read."""
     use_memory_budget(memory_budget)
     if is_sweep(scenario):
+        if assignments:
+            raise ConfigError(f"--set: expected a scenario, received the sweep {scenario} (a sweep sets fields under overrides: and grid:)")
         plan = plan_sweep(scenario)
         typer.echo(f"ok: {plan.source or scenario} (sweep: {len(plan.combinations)} grid points × {len(plan.seeds)} seeds = {len(plan.tasks)} runs)")
         return
-    spec = load_scenario(scenario)
-    typer.echo(f"ok: {spec.source or scenario} ({spec.family})")
+    spec = scenario_with(scenario, assignments)
+    settings = "".join(f" --set {text}" for text in assignments or ())
+    typer.echo(f"ok: {spec.source or scenario}{settings} ({spec.family})")
+
+
+def scenario_with(scenario: str, assignments: list[str] | None):
+    """The validated scenario with the ``--set`` arguments applied (:mod:`robofleet.cli.overrides`)."""
+    from .overrides import load_with_assignments
+
+    return load_with_assignments(scenario, assignments)
 
 
 def is_sweep(ref: str) -> bool:
@@ -209,9 +223,9 @@ def use_memory_budget(size: str | None) -> None:
 
 
 @app.command("check")
-def check_command(scenario: ScenarioArgument) -> None:
+def check_command(scenario: ScenarioArgument, assignments: SetOption = None) -> None:
     """Report which of its paper's checkable conditions a scenario meets, and what follows."""
-    spec = load_scenario(scenario)
+    spec = scenario_with(scenario, assignments)
     family = family_of(spec)
     typer.echo(f"{spec.source or scenario}: {family.title} — {family.paper}")
     for guarantee in family.check(spec):
@@ -236,16 +250,40 @@ app.command("export")(export_command)
 
 @app.command("scenarios")
 def scenarios_command(
+    names: Annotated[Optional[list[str]], typer.Argument(
+        metavar="NAME", help="Show these scenarios (or, with --sweeps, sweeps) with their full descriptions.", show_default=False)] = None,
     family: Annotated[Optional[str], typer.Option(help="Only this family's scenarios.")] = None,
     sweeps: Annotated[bool, typer.Option("--sweeps", help="List the shipped sweeps instead.")] = False,
+    long: Annotated[bool, typer.Option("--long", help="Full descriptions (the file's whole leading comment), not their first sentence.")] = False,
 ) -> None:
-    """List the shipped scenarios (name, family, description); every command takes these names."""
+    """List the shipped scenarios (name, family, description); every command takes these names.
+
+    With NAME (or --long): full descriptions, one paragraph each."""
     if family is not None and family not in FAMILIES:
         raise RobofleetError(f"--family: expected one of {sorted(FAMILIES)}, received {family!r}")
-    entries = [e for e in catalogue.list("sweeps" if sweeps else "scenarios") if family is None or e.family == family]
+    kind = "sweeps" if sweeps else "scenarios"
+    if names:
+        root = catalogue.folder(kind)
+        entries = [catalogue.describe(catalogue.path(name, kind), root, kind) for name in names]
+    else:
+        entries = catalogue.list(kind)
+    entries = [e for e in entries if family is None or e.family == family]
+    if names or long:
+        typer.echo("\n\n".join(long_description(entry) for entry in entries))
+        return
     width = max((len(e.name) for e in entries), default=0)
     for entry in entries:
         typer.echo(f"{entry.name:<{width}}  {entry.family:<12}  {entry.description}")
+
+
+def long_description(entry: catalogue.Entry, width: int = 88) -> str:
+    """A catalogue entry with its full description: ``name (family)``, then the file's
+    whole leading comment, wrapped and indented, then the file."""
+    import textwrap
+
+    text = catalogue.leading_comment(entry.path.read_text()) or "(no description)"
+    body = textwrap.fill(text, width=width, initial_indent="    ", subsequent_indent="    ", break_on_hyphens=False)
+    return f"{entry.name} ({entry.family})\n{body}\n    file: {entry.path}"
 
 
 @app.command("sweep")

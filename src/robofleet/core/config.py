@@ -239,6 +239,11 @@ def scenario_error_from(exc: ValidationError, source: str | None) -> ScenarioErr
     return ScenarioError(loc, expected, err.get("input"), source=source)
 
 
+def is_field_path(key: Any) -> bool:
+    """Whether ``key`` is a dotted field path such as ``robots.radius`` (no empty part)."""
+    return isinstance(key, str) and bool(key) and all(part for part in key.split("."))
+
+
 def set_path(mapping: dict, dotted: str, value: Any) -> None:
     """Set ``mapping["a"]["b"] = value`` for ``dotted == "a.b"`` (creating sub-mappings).
 
@@ -333,7 +338,7 @@ def scenario_data(ref: str | Path | Mapping[str, Any], overrides: Mapping[str, A
     if overrides is not None and not isinstance(overrides, Mapping):
         raise ConfigError(f"overrides: expected a mapping {{'dotted.field': value}}, received {type(overrides).__name__} {short_repr(overrides)}")
     for key, value in (overrides or {}).items():
-        if not isinstance(key, str) or not key or any(not part for part in key.split(".")):
+        if not is_field_path(key):
             raise ConfigError(f"overrides: expected dotted field paths such as 'robots.radius' as keys, received {short_repr(key)}")
         try:
             set_path(data, key, value)

@@ -146,6 +146,47 @@ def proxy(label: str, *, color: Any = "k", marker: str = "", ls: str = "", ms: f
                   mfc=color if mfc is None else mfc, label=label)
 
 
+AXES_INCHES = 5.0
+"""The longer side of the axes that shows a run's workspace, in inches."""
+MIN_AXES_INCHES = 1.5
+"""The shorter side of those axes at least (a corridor-like workspace stays readable)."""
+
+
+def workspace_figure(lo: Any, hi: Any, longest: float = AXES_INCHES) -> tuple[plt.Figure, plt.Axes]:
+    """A figure with one axes shaped like the drawn area ``[lo, hi]`` (x, y corners): its
+    longer side ``longest`` inches. Draw into it, then :func:`fit_canvas` sizes the canvas
+    to what was drawn."""
+    span = np.maximum(np.asarray(hi, float)[:2] - np.asarray(lo, float)[:2], 1e-9)
+    aspect = float(span[1] / span[0])
+    width, height = (longest, longest * aspect) if aspect <= 1 else (longest / aspect, longest)
+    width, height = max(width, MIN_AXES_INCHES), max(height, MIN_AXES_INCHES)
+    margin = 2.0  # inches around the axes while drawing; fit_canvas trims what is not used
+    fig = plt.figure(figsize=(width + 2 * margin, height + 2 * margin))
+    ax = fig.add_axes((margin / (width + 2 * margin), margin / (height + 2 * margin),
+                       width / (width + 2 * margin), height / (height + 2 * margin)))
+    return fig, ax
+
+
+def fit_canvas(fig: plt.Figure, pad: float = 0.1) -> plt.Figure:
+    """Size the canvas to everything drawn on it — axes, labels, titles, legends outside the
+    axes, colour bars — plus ``pad`` inches, keeping every axes' size in inches.
+
+    An equal-aspect axes then fills the canvas but for its labels, title and legend: the
+    canvas takes the workspace's aspect (plus the legend's column), with no blank bands,
+    and no legend reaches past an edge. Animations fit their first frame before rendering."""
+    fig.canvas.draw()
+    box = fig.get_tightbbox(fig.canvas.get_renderer())  # inches
+    width, height = fig.get_size_inches()
+    new_width, new_height = box.width + 2 * pad, box.height + 2 * pad
+    dx, dy = box.x0 - pad, box.y0 - pad
+    for ax in fig.axes:
+        p = ax.get_position()
+        ax.set_position(((p.x0 * width - dx) / new_width, (p.y0 * height - dy) / new_height,
+                         p.width * width / new_width, p.height * height / new_height))
+    fig.set_size_inches(new_width, new_height)
+    return fig
+
+
 def outside_legend(ax: plt.Axes, handles: list, fontsize: float = 7) -> None:
     """The legend of ``handles`` to the right of the axes (it never hides what is drawn)."""
     ax.legend(handles=handles, fontsize=fontsize, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0)

@@ -14,9 +14,9 @@ avoidance trace is drawn by the same two functions, from what the trace recorded
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import matplotlib
 
@@ -28,6 +28,7 @@ from matplotlib.patches import Polygon as PolygonPatch
 
 from ..core.trace import Trace
 from .animation import (
+    fit_canvas,
     frame_indices,
     mark_zero_rates,
     outside_legend,
@@ -36,6 +37,7 @@ from .animation import (
     save_figure,
     save_gif,
     visible_legend,
+    workspace_figure,
 )
 
 if TYPE_CHECKING:
@@ -101,12 +103,22 @@ def draw_workspace(ax: plt.Axes, trace: Trace) -> None:
     ax.set_aspect("equal")
 
 
+def robot_palette(n: int) -> np.ndarray:
+    """RGBA colour per robot index: tab10's saturated colours for up to 10 robots, tab20 for
+    up to 20, evenly spaced hues of turbo beyond."""
+    if n <= 10:
+        return plt.cm.tab10(np.arange(n))
+    if n <= 20:
+        return plt.cm.tab20(np.arange(n))
+    return plt.cm.turbo(np.linspace(0.05, 0.95, n))
+
+
 def robot_colours(trace: Trace, k: int | None = None) -> np.ndarray:
-    """RGBA colour per robot: by index in 2-D; in 3-D by the height at state ``k``
-    (viridis over :func:`height_range`; the start height when ``k`` is ``None``)."""
+    """RGBA colour per robot: by index in 2-D (:func:`robot_palette`); in 3-D by the height
+    at state ``k`` (viridis over :func:`height_range`; the start height when ``k`` is ``None``)."""
     n = trace.positions.shape[1]
     if not is_three_d(trace):
-        return plt.cm.tab20(np.linspace(0, 1, n, endpoint=False))
+        return robot_palette(n)
     norm = plt.Normalize(*height_range(trace))
     return plt.cm.viridis(norm(trace.positions[0 if k is None else k, :, 2]))
 
@@ -119,15 +131,22 @@ def outcome_text(trace: Trace) -> str:
 
 
 def plot_trace(trace: Trace, path: str | Path) -> Path:
-    """Static figure of a run: every robot's true path, start (○) and goal (×).
+    """Static figure of a run (:func:`trace_figure`) written to ``path``."""
+    return save_figure(trace_figure(trace), path)
+
+
+def trace_figure(trace: Trace) -> plt.Figure:
+    """Static figure of a run: every robot's true path, start (○) and goal (×), one colour
+    per robot (:func:`robot_palette`); the canvas sized to the workspace
+    (:func:`~.animation.fit_canvas`), the legend beside it.
 
     3-D runs are drawn from above (the title says so), with the box footprints.
     """
-    fig, ax = plt.subplots(figsize=(6, 6))
+    fig, ax = workspace_figure(*view_extent(trace))
     draw_workspace(ax, trace)
     pos = trace.positions
     goals = np.asarray(trace.metadata["goals"], float)
-    colours = plt.cm.tab20(np.linspace(0, 1, pos.shape[1], endpoint=False))
+    colours = robot_palette(pos.shape[1])
     for i in range(pos.shape[1]):
         ax.plot(pos[:, i, 0], pos[:, i, 1], color=colours[i], lw=1)
         ax.plot(*pos[0, i, :2], "o", color=colours[i], ms=4)
@@ -139,7 +158,7 @@ def plot_trace(trace: Trace, path: str | Path) -> Path:
     if trace.workspace is not None and len(trace.workspace.obstacles) or trace.metadata.get("boxes"):
         handles.append(proxy("obstacle" + (" (footprint)" if is_three_d(trace) else ""), color="0.35", marker="s", ms=9))
     outside_legend(ax, handles)
-    return save_figure(fig, path, tight=True)
+    return fit_canvas(fig)
 
 
 # -- cells and uncertainty -------------------------------------------------------------
@@ -153,6 +172,32 @@ def clip_halfplane(polygon: np.ndarray, a: np.ndarray, b: float) -> np.ndarray:
         if fp * fq < 0:
             out.append(p + (q - p) * fp / (fp - fq))
     return np.array(out).reshape(-1, 2)
+
+
+def local_box_view(trace: Trace) -> float | None:
+    """Half-width R_loc of the local box a robot's cell is drawn in, if the run recorded a
+    finite one: a robot builds its cell from the neighbours and obstacles inside
+    p̂_i ± R_loc (docs/theory/buavc.md "Cell"), so beyond that box its cell says nothing
+    it knows, and drawn to the workspace's edge every free robot's cell would cover the
+    whole workspace under the others'."""
+    value = trace.metadata.get("local_box")
+    try:
+        half = float(value)
+    except (TypeError, ValueError):
+        return None
+    return half if np.isfinite(half) and half > 0 else None
+
+
+def box_clip(polygon: np.ndarray, centre: np.ndarray, half: float) -> np.ndarray:
+    """The convex ``polygon`` cut to the square ``centre ± half``."""
+    for axis in range(2):
+        for sign in (1.0, -1.0):
+            a = np.zeros(2)
+            a[axis] = sign
+            polygon = clip_halfplane(polygon, a, sign * centre[axis] + half)
+            if len(polygon) < 3:
+                return polygon
+    return polygon
 
 
 def cell_polygon(A: np.ndarray, b: np.ndarray, clip: np.ndarray) -> np.ndarray:
@@ -190,9 +235,18 @@ def draw_heading(ax: plt.Axes, position: np.ndarray, heading: float, radius: flo
 
 
 def animate_trace(trace: Trace, path: str | Path, fps: int = 10, max_frames: int = 150) -> Path:
-    """GIF of a run: true discs with trails and goals; each robot's cell when recorded,
-    3σ ellipses of its estimate when ``robot_cov`` is known, headings when recorded;
-    3-D runs from above with the height as colour."""
+    """GIF of a run (:func:`animation_scene`), at most ``max_frames`` evenly spaced states."""
+    fig, update = animation_scene(trace)
+    return save_gif(fig, update, frame_indices(len(trace.positions), max_frames), path, fps)
+
+
+def animation_scene(trace: Trace) -> tuple[plt.Figure, Callable[[int], None]]:
+    """The figure of a run's animation and the function drawing its state ``k``: true discs
+    with trails and goals; each robot's cell when recorded, in the robot's colour, within
+    its local box (:func:`local_box_view`), while the robot has not arrived; 3σ ellipses of
+    its estimate when ``robot_cov`` is known, headings when recorded; 3-D runs from above
+    with the height as colour. The canvas is fitted to the first state's drawing
+    (:func:`~.animation.fit_canvas`), the legend beside the workspace."""
     pos = trace.positions
     radius = float(trace.metadata["radius"])
     dt = float(trace.metadata["dt"])
@@ -203,14 +257,15 @@ def animate_trace(trace: Trace, path: str | Path, fps: int = 10, max_frames: int
     cov = trace.metadata.get("robot_cov")
     ellipse = uncertainty_ellipse(cov, 3.0) if cov is not None and not is_three_d(trace) else None
     clip = clip_region(trace)
+    local_box = local_box_view(trace)
     arrival = np.asarray(trace.arrays.get("arrival_steps", np.full(pos.shape[1], -1)))
-    fig, ax = plt.subplots(figsize=(7.6, 6))
+    fig, ax = workspace_figure(*view_extent(trace))
     if is_three_d(trace):
         mappable = plt.cm.ScalarMappable(norm=plt.Normalize(*height_range(trace)), cmap="viridis")
-        fig.colorbar(mappable, ax=ax, label="height z [m]", shrink=0.8, pad=0.02)
-    handles = animation_legend(trace, cells is not None, ellipse is not None, headings is not None)
+        fig.colorbar(mappable, ax=ax, label="height z [m]", location="bottom", shrink=0.8, pad=0.12, aspect=40)  # the legend is on the right
+    handles = animation_legend(trace, cells is not None, ellipse is not None, headings is not None, local_box is not None)
 
-    def update(k: int):
+    def update(k: int) -> None:
         ax.clear()
         draw_workspace(ax, trace)
         colours = robot_colours(trace, k) if is_three_d(trace) else robot_colours(trace)
@@ -219,9 +274,8 @@ def animate_trace(trace: Trace, path: str | Path, fps: int = 10, max_frames: int
             arrived = 0 <= arrival[i] <= k
             if cells is not None and len(cells[0]) and not arrived:  # an arrived robot's cell only hides the others
                 step = min(k, len(cells[0]) - 1)
-                polygon = cell_polygon(cells[0][step, i], cells[1][step, i], clip)
-                if len(polygon) >= 3:
-                    ax.add_patch(PolygonPatch(polygon, closed=True, fc=colours[i], alpha=0.15, ec=colours[i], lw=0.6))
+                centre = estimates[min(step, len(estimates) - 1), i, :2] if estimates is not None and len(estimates) else pos[k, i, :2]
+                draw_cell(ax, cells[0][step, i], cells[1][step, i], clip, colours[i], centre, local_box)
             ax.plot(trail[:, i, 0], trail[:, i, 1], color=colours[i], lw=0.6, alpha=0.6)
             ax.add_patch(Circle(pos[k, i, :2], radius, color=colours[i], alpha=0.85))
             if ellipse is not None and estimates is not None and len(estimates):
@@ -234,17 +288,36 @@ def animate_trace(trace: Trace, path: str | Path, fps: int = 10, max_frames: int
         ax.set_title(f"{run_title(trace)}" + (" (top view)" if is_three_d(trace) else "") + f"\nt = {k * dt:.1f} s", fontsize=9)
         outside_legend(ax, handles)
 
-    fig.subplots_adjust(left=0.1, right=0.68 if not is_three_d(trace) else 0.62)
-    return save_gif(fig, update, frame_indices(len(pos), max_frames), path, fps)
+    update(0)
+    fit_canvas(fig)
+    return fig, update
 
 
-def animation_legend(trace: Trace, cells: bool, ellipses: bool, headings: bool) -> list:
+def draw_cell(ax: plt.Axes, A: np.ndarray, b: np.ndarray, clip: np.ndarray, colour: Any, centre: np.ndarray,
+              local_box: float | None) -> None:
+    """One robot's cell ``{p : A p ≤ b}`` in its colour (a light fill, a solid edge), cut to
+    its local box ``centre ± local_box`` when given."""
+    polygon = cell_polygon(A, b, clip)
+    if local_box is not None and len(polygon) >= 3:
+        polygon = box_clip(polygon, centre, local_box)
+    if len(polygon) >= 3:
+        ax.add_patch(PolygonPatch(polygon, closed=True, fc=(*colour[:3], CELL_ALPHA), ec=colour, lw=0.8))
+
+
+CELL_ALPHA = 0.18
+"""Opacity of a cell's fill (its edge is opaque)."""
+
+
+def animation_legend(trace: Trace, cells: bool, ellipses: bool, headings: bool, local_box: bool = False) -> list:
     """Legend entries of what :func:`animate_trace` draws for this trace."""
     colour = "C0"
     handles = [proxy("robot (true position)" + (", colour = height" if is_three_d(trace) else ""), color=colour, marker="o", ms=9),
                proxy(f"trail (last {TRAIL_STEPS} steps)", color=colour, ls="-", lw=0.8), proxy("goal", color=colour, marker="x")]
     if cells:
-        handles.append(proxy("B-UAVC cell (robots not arrived)", color=colour, marker="s", ms=10, mfc=(0.12, 0.47, 0.71, 0.15)))
+        method = METHOD_STYLE.get(str(trace.metadata.get("method")), ("B-UAVC",))[0]
+        where = "\nwithin its local box (±R_loc)" if local_box else ""
+        handles.append(proxy(f"{method} cell of a robot not arrived{where}", color=colour, marker="s", ms=10,
+                             mfc=(*matplotlib.colors.to_rgb(colour), CELL_ALPHA)))
     if ellipses:
         handles.append(proxy("3σ ellipse of the estimate", color=colour, ls="--", lw=0.8))
     if headings:

@@ -22,12 +22,14 @@ from matplotlib.patches import Polygon as PolygonPatch
 from ..core.trace import Trace
 from ..core.workspace import Workspace
 from .animation import (
+    fit_canvas,
     frame_indices,
     outside_legend,
     proxy,
     run_title,
     save_figure,
     save_gif,
+    workspace_figure,
 )
 
 if TYPE_CHECKING:
@@ -131,8 +133,9 @@ def draw_workspace(ax: plt.Axes, workspace: Workspace) -> None:
 
 def plot_trace(trace: Trace, path: str | Path) -> Path:
     """The map with the planned trajectories (dotted), the starts (hollow discs) and the
-    robots where the run ended (green finished, orange waiting, red deadlocked, blue moving)."""
-    fig, ax = plt.subplots(figsize=(8, 6.6))
+    robots where the run ended (green finished, orange waiting, red deadlocked, blue moving);
+    the canvas sized to the map (:func:`~.animation.fit_canvas`)."""
+    fig, ax = workspace_figure(*map_corners(trace.workspace))
     draw_workspace(ax, trace.workspace)
     _draw_plan(ax, trace)
     radius = float(trace.metadata["radius"])
@@ -148,7 +151,12 @@ def plot_trace(trace: Trace, path: str | Path) -> Path:
                                                                                ("tab:blue", "tab:orange", "tab:green", "tab:red")) if c in colors]
     handles += _map_handles(trace)
     outside_legend(ax, handles)
-    return save_figure(fig, path, dpi=110, tight=True)
+    return save_figure(fit_canvas(fig), path, dpi=110)
+
+
+def map_corners(workspace: Workspace) -> tuple[np.ndarray, np.ndarray]:
+    """Lower-left and upper-right corners of the map."""
+    return workspace.bounds.min(axis=0), workspace.bounds.max(axis=0)
 
 
 def _map_handles(trace: Trace) -> list:
@@ -200,14 +208,13 @@ def animate_trace(trace: Trace, path: str | Path, max_frames: int = 150, fps: in
     radius = float(trace.metadata["radius"])
     dt = float(trace.metadata.get("dt", 1.0))
     deadlocked = {r for e in trace.events if e.get("kind") == "deadlock" for r in e.get("robots", [])}
-    fig, ax = plt.subplots(figsize=(10, 6.6))
+    fig, ax = workspace_figure(*map_corners(trace.workspace))
     draw_workspace(ax, trace.workspace)
     _draw_plan(ax, trace)
     ax.set(xlabel="x [map units]", ylabel="y [map units]")
     outside_legend(ax, [proxy(f"robot {name}", color=c, marker="o", ms=8) for name, c in
                         zip(("moving", "waiting", "finished", "deadlocked (last frame)"), ("tab:blue", "tab:orange", "tab:green", "tab:red"))
                         if name != "deadlocked (last frame)" or deadlocked] + [proxy("planned path", color="C0", ls=":")] + _map_handles(trace))
-    fig.subplots_adjust(left=0.08, right=0.72)
     discs = [ax.add_patch(Circle(p, radius, color="tab:blue", zorder=3)) for p in positions[0]]
     title = ax.set_title("", fontsize=9)
     frames = frame_indices(len(positions), max_frames)
@@ -228,6 +235,8 @@ def animate_trace(trace: Trace, path: str | Path, max_frames: int = 150, fps: in
         title.set_text(f"{run_title(trace)}\nt = {t * dt:.1f} s · waiting: {int(waiting[min(t, len(waiting) - 1)].sum())}")
         return [*discs, title]
 
+    update(frames[0])
+    fit_canvas(fig)  # to the map, the legend and the first frame's title
     return save_gif(fig, update, frames, path, fps=fps, blit=True)
 
 

@@ -19,12 +19,14 @@ import pandas as pd
 
 from ..core.trace import Trace
 from .animation import (
+    fit_canvas,
     frame_indices,
     outside_legend,
     proxy,
     run_title,
     save_figure,
     save_gif,
+    workspace_figure,
 )
 
 
@@ -59,9 +61,10 @@ def plot_delta_curves(curves: pd.DataFrame, path: str | Path) -> Path:
 
 
 def plot_trace(trace: Trace, path: str | Path, title: str | None = None) -> Path:
-    """Figs. 9-10: courses of the leader (black) and followers, start (○) and end (●) positions."""
+    """Figs. 9-10: courses of the leader (black) and followers, start (○) and end (●) positions;
+    the canvas sized to the courses (:func:`~.animation.fit_canvas`)."""
     pos = trace.positions
-    fig, ax = plt.subplots(figsize=(6.5, 6.5))
+    fig, ax = workspace_figure(pos.reshape(-1, 2).min(axis=0), pos.reshape(-1, 2).max(axis=0))
     ax.plot(pos[:, 0, 0], pos[:, 0, 1], color="k", lw=2.0, label="leader")
     for i in range(1, pos.shape[1]):
         ax.plot(pos[:, i, 0], pos[:, i, 1], lw=0.8, color=f"C{i % 10}")
@@ -75,7 +78,7 @@ def plot_trace(trace: Trace, path: str | Path, title: str | None = None) -> Path
     handles, _ = ax.get_legend_handles_labels()
     outside_legend(ax, handles + [proxy("follower course (one colour each)", color="C1", ls="-", lw=0.8),
                                   proxy("leader at the end (along its heading)", color="k", marker=">", ms=9)])
-    return save_figure(fig, path, dpi=110, tight=True)
+    return save_figure(fit_canvas(fig), path, dpi=110)
 
 
 def plot_comparison(table: pd.DataFrame, path: str | Path) -> Path:
@@ -110,11 +113,10 @@ def animate_trace(trace: Trace, path: str | Path, fps: int = 15, max_frames: int
     times = trace.arrays["time"]
     frames = frame_indices(len(pos), max_frames)
     lo, hi = pos.reshape(-1, 2).min(axis=0) - 20, pos.reshape(-1, 2).max(axis=0) + 20
-    fig, ax = plt.subplots(figsize=(7.6, 5.5))
+    fig, ax = workspace_figure(lo, hi)
     handles = [proxy("leader (along its heading)", color="k", marker=">", ms=9), proxy("follower", color="C1", marker="o", ms=6),
                proxy(f"trail (last {tail} samples)", color="C1", ls="-", lw=0.7),
                proxy("slot of the estimated target", color="0.5", marker="o", mfc="none", ms=8)]
-    fig.subplots_adjust(left=0.1, right=0.66)
 
     def update(k: int):
         ax.clear()
@@ -132,6 +134,8 @@ def animate_trace(trace: Trace, path: str | Path, fps: int = 15, max_frames: int
                      f"Δr = {trace.arrays['delta_r'][k]:.1f}", fontsize=9)
         outside_legend(ax, handles)
 
+    update(frames[0])
+    fit_canvas(fig)
     return save_gif(fig, update, frames, path, fps=fps)
 
 

@@ -20,12 +20,14 @@ from matplotlib.patches import Polygon as PolygonPatch
 
 from ..core.trace import Trace
 from .animation import (
+    fit_canvas,
     frame_indices,
     outside_legend,
     proxy,
     run_title,
     save_figure,
     save_gif,
+    workspace_figure,
 )
 
 ALGORITHM_ORDER = ("lfp", "ru", "rule1", "proposed")
@@ -101,7 +103,7 @@ def plot_routes(trace: Trace, path: str | Path, robots: list[int] | None = None,
     """Routes of ``robots`` (default all) with arrows along the moves (Figs. 5 and 6)."""
     pos = trace.positions
     robots = list(range(pos.shape[1])) if robots is None else list(robots)
-    fig, ax = plt.subplots(figsize=(7.2, 6.0))
+    fig, ax = workspace_figure(*area_corners(trace))
     draw_area(ax, trace)
     colors = plt.cm.tab10(np.arange(pos.shape[1]) % 10)
     for r in robots:
@@ -116,7 +118,16 @@ def plot_routes(trace: Trace, path: str | Path, robots: list[int] | None = None,
                  fontsize=9)
     handles, _ = ax.get_legend_handles_labels()
     outside_legend(ax, handles + [proxy("move (arrow along the edge)", color=colors[robots[0] if robots else 0], marker=">", ls="-", ms=5)])
-    return save_figure(fig, path, dpi=130, tight=True)
+    return save_figure(fit_canvas(fig), path, dpi=130)
+
+
+def area_corners(trace: Trace) -> tuple[np.ndarray, np.ndarray]:
+    """Lower-left and upper-right corners of the searched area (else of the positions)."""
+    if trace.workspace is not None:
+        x0, y0, x1, y1 = trace.workspace.extent
+        return np.array([x0, y0]), np.array([x1, y1])
+    xy = trace.positions.reshape(-1, 2)
+    return xy.min(axis=0), xy.max(axis=0)
 
 
 def plot_trace(trace: Trace, path: str | Path) -> Path:
@@ -128,7 +139,7 @@ def animate_trace(trace: Trace, path: str | Path, fps: int = 6, max_frames: int 
     """GIF of a search run: robots (failed ones crossed out), their trails and the visited vertices."""
     pos = trace.positions
     times = trace.arrays["time"][:, 0, 0] if "time" in trace.arrays else np.arange(len(pos), dtype=float)
-    fig, ax = plt.subplots(figsize=(8.6, 5.4))
+    fig, ax = workspace_figure(*area_corners(trace))
     draw_area(ax, trace)
     colors = plt.cm.tab10(np.arange(pos.shape[1]) % 10)
     handles, _ = ax.get_legend_handles_labels()
@@ -144,7 +155,6 @@ def animate_trace(trace: Trace, path: str | Path, fps: int = 6, max_frames: int 
     if failed_at:
         handles.append(proxy("failed robot", color="k", marker="x", ms=9))
     outside_legend(ax, handles)
-    fig.subplots_adjust(left=0.08, right=0.7)
 
     def update(k: int):
         for r, line in enumerate(trails):
@@ -156,7 +166,10 @@ def animate_trace(trace: Trace, path: str | Path, fps: int = 6, max_frames: int 
         label.set_text(f"{run_title(trace)}\nstep {k}, t = {times[k]:.1f} s")
         return [*trails, dots, seen, dead, label]
 
-    return save_gif(fig, update, frame_indices(len(pos), max_frames), path, fps=fps)
+    frames = frame_indices(len(pos), max_frames)
+    update(frames[0])
+    fit_canvas(fig)  # to the area, the legend and the first frame's title
+    return save_gif(fig, update, frames, path, fps=fps)
 
 
 def _visited_until(trace: Trace):
