@@ -239,10 +239,17 @@ def log_solids(rr: Any, rec: Any, scene: Scene) -> None:
                                                 colors=[rgba("#808080")], fill_mode="solid"), static=True)
 
 
+EVENTS_PER_CHUNK = 50_000
+"""Events logged per call (their texts made for one chunk at a time)."""
+
+
 def log_events(rr: Any, rec: Any, scene: Scene) -> None:
-    if not scene.events:
-        return
+    """The events as a text log at their frames' times, :data:`EVENTS_PER_CHUNK` at a time."""
+    events = scene.events
     names = scene.robot_names or [f"robot {i}" for i in range(scene.n_robots)]
-    texts = [f"{e.kind}" + (f" · {names[e.robot]}" if e.robot >= 0 else "") + (f" · {e.text}" if e.text else "") for e in scene.events]
-    times = rr.TimeColumn(TIME_AXIS, duration=[float(scene.times[e.frame]) for e in scene.events])
-    rec.send_columns("world/events", indexes=[times], columns=rr.TextLog.columns(text=texts))
+    times = np.asarray(scene.times, float)
+    for start in range(0, len(events), EVENTS_PER_CHUNK):
+        chunk = range(start, min(len(events), start + EVENTS_PER_CHUNK))
+        texts = [events.label(i, names) for i in chunk]
+        column = rr.TimeColumn(TIME_AXIS, duration=times[events.frame[chunk.start:chunk.stop]])
+        rec.send_columns("world/events", indexes=[column], columns=rr.TextLog.columns(text=texts))
