@@ -113,7 +113,7 @@ def trace_events(trace: Trace, steps: np.ndarray, kinds: dict[str, str]) -> Scen
     chosen = np.flatnonzero(events.kind_mask(*kinds))
     picked = events.take(chosen)
     names = list(dict.fromkeys(kinds[k] for k in picked.kinds if k in kinds))
-    table = np.array([names.index(kinds[k]) for k in picked.kinds], np.int64)
+    table = np.array([names.index(kinds[k]) if k in kinds else -1 for k in picked.kinds], np.int64)  # -1: not chosen
     robot = picked.column("robot", -1) if "robot" in picked.columns and picked.columns["robot"].kind == "integer" else np.full(len(picked), -1)
     texts, text = event_texts(picked)
     return SceneEvents(frames_of_steps(picked.steps, steps), table[picked.codes] if len(table) else np.zeros(0, np.int64),
