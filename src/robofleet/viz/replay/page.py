@@ -49,10 +49,13 @@ def scene_json(scene: Scene) -> str:
 
 
 def scene_json_pieces(scene: Scene) -> Iterator[str]:
-    """:func:`scene_json` in pieces (each array's text one piece), for writing without
-    holding the whole text."""
-    for piece in json.JSONEncoder(separators=(",", ":"), allow_nan=False).iterencode(scene.to_document()):
-        yield piece.replace("<", "\\u003c")
+    """:func:`scene_json` in pieces (one per top-level entry of the document), for writing
+    without holding the whole text."""
+    doc = scene.to_document()
+    for index, (key, value) in enumerate(doc.items()):
+        text = json.dumps({key: value}, separators=(",", ":"), allow_nan=False)[1:-1]
+        yield ("{" if index == 0 else ",") + text.replace("<", "\\u003c")
+    yield "}" if doc else "{}"
 
 
 def robofleet_version() -> str:

@@ -15,7 +15,16 @@ async function decodeArray(enc) {
   const bytes = new Uint8Array(text.length);
   for (let i = 0; i < text.length; i++) bytes[i] = text.charCodeAt(i);
   const stream = new Blob([bytes]).stream().pipeThrough(new DecompressionStream("deflate"));
-  const buffer = await new Response(stream).arrayBuffer();
+  let buffer = await new Response(stream).arrayBuffer();
+  const width = TYPED[enc.dtype].BYTES_PER_ELEMENT;
+  if (enc.shuffle && width > 1) {  // bytes grouped by plane: value i's byte b is at b * n + i
+    const planes = new Uint8Array(buffer), out = new Uint8Array(planes.length), n = planes.length / width;
+    for (let b = 0; b < width; b++) {
+      const base = b * n;
+      for (let i = 0; i < n; i++) out[i * width + b] = planes[base + i];
+    }
+    buffer = out.buffer;
+  }
   const array = new TYPED[enc.dtype](buffer);
   array.shape = enc.shape;
   return array;
