@@ -113,8 +113,9 @@ class Trace:
 
         Both files replace an earlier trace's together (:func:`~robofleet.core.files.staged_files`):
         stopped at any moment, the directory holds the earlier trace or this one, complete.
-        The arrays are written one after the other, each in chunks of 16 MiB (numpy's
-        ``savez_compressed``), so saving needs little memory beyond the arrays themselves.
+        The arrays are written one after the other, each in chunks of
+        :data:`SAVE_CHUNK_BYTES` (:func:`write_npz`), so saving needs little memory beyond
+        the arrays themselves.
 
         Raises
         ------
@@ -131,7 +132,7 @@ class Trace:
                         "results": self.results, "workspace": _workspace_to_json(self.workspace)}, json_safe=True)
         doc["schema"] = schema_of(doc, stored, self.events)
         with staged_files(d, TRACE_FILES) as staging:
-            np.savez_compressed(staging.path / "trace.npz", **stored)
+            write_npz(staging.path / "trace.npz", stored)
             (staging.path / "trace.json").write_text(dumps_json(doc), encoding="utf-8")
         return d
 
@@ -161,6 +162,27 @@ class Trace:
         except (KeyError, TypeError, ValueError, AttributeError, RobofleetError) as exc:
             raise TraceError(f"{d / 'trace.json'}: workspace: expected bounds, obstacles and regions, received an unreadable one ({one_line(exc)})") from None
         return cls(doc["family"], arrays, events, doc["metadata"], doc["results"], workspace)
+
+
+SAVE_CHUNK_BYTES = 1 << 20
+"""Bytes of an array copied and deflated at a time by :func:`write_npz`."""
+
+
+def write_npz(path: Path, arrays: dict[str, np.ndarray]) -> None:
+    """Write ``arrays`` as a compressed ``.npz`` (what ``np.load`` reads, as
+    ``np.savez_compressed`` writes it), each array row block by row block, at most
+    :data:`SAVE_CHUNK_BYTES` (or one row) copied at a time."""
+    with zipfile.ZipFile(path, "w", compression=zipfile.ZIP_DEFLATED, allowZip64=True) as archive:
+        for name, array in arrays.items():
+            with archive.open(f"{name}.npy", "w", force_zip64=True) as member:
+                header = {"descr": np.lib.format.dtype_to_descr(array.dtype), "fortran_order": False, "shape": array.shape}
+                np.lib.format.write_array_header_1_0(member, header)
+                if array.ndim == 0:
+                    member.write(array.tobytes())
+                    continue
+                rows = max(1, SAVE_CHUNK_BYTES // max(1, array[:1].nbytes))
+                for start in range(0, len(array), rows):
+                    member.write(np.ascontiguousarray(array[start:start + rows]).tobytes())
 
 
 def _read_document(path: Path) -> dict[str, Any]:
