@@ -20,6 +20,7 @@ from ..avoidance import (
 )
 from .building import (
     MAX_FRAMES,
+    frame_blocks,
     arrived_mask,
     event_marks,
     goal_shapes,
@@ -55,11 +56,14 @@ def ellipse_layer(trace: Trace, rows: np.ndarray) -> Layer | None:
     if cov is None or estimates is None or not len(estimates) or is_three_d(trace):
         return None
     width, height, angle = uncertainty_ellipse(cov, 3.0)
-    centres = estimates[np.minimum(rows, len(estimates) - 1), :, :2]
-    F, N = centres.shape[:2]
+    F, N = len(rows), estimates.shape[1]
+    centres = np.empty((F, N, 2), np.float32)  # as embedded
+    for block in frame_blocks(F):
+        centres[block] = estimates[np.minimum(rows[block], len(estimates) - 1), :, :2]
     return Layer("ellipses", "uncertainty (3σ)", {
         "offsets": np.arange(F + 1) * N, "xy": centres.reshape(-1, 2),
-        "shape": np.tile([width, height, np.radians(angle)], (F * N, 1)), "robot": np.tile(np.arange(N), F)},
+        "shape": np.tile(np.array([width, height, np.radians(angle)], np.float32), (F * N, 1)),
+        "robot": np.tile(np.arange(N, dtype=np.int32), F)},
         {"stroke": "robot", "width": 1, "dash": [4, 3]})
 
 
@@ -108,14 +112,18 @@ def replay_shapes(trace: Trace, views: list[View]) -> list[Shape]:
     return shapes
 
 
-def replay_fields(trace: Trace, rows: np.ndarray, times: np.ndarray) -> list[Field]:
-    """Hover values: speed, heading, estimate error, whether the estimate lies in the cell."""
-    fields = [speed_field(trace.positions[rows], times, "m/s")]
+def replay_fields(trace: Trace, rows: np.ndarray, times: np.ndarray, positions: np.ndarray | None = None) -> list[Field]:
+    """Hover values: speed, heading, estimate error, whether the estimate lies in the cell
+    (``positions``: the frames' positions, if already taken)."""
+    positions = trace.positions[rows] if positions is None else positions
+    fields = [speed_field(positions, times, "m/s")]
     if "headings" in trace.arrays:
         fields.append(Field("heading", trace.arrays["headings"][rows], "rad"))
     estimates = trace.arrays.get("estimates")
     if estimates is not None and len(estimates):
-        error = np.linalg.norm(estimates[np.minimum(rows, len(estimates) - 1)] - trace.positions[rows], axis=-1)
+        error = np.empty(positions.shape[:2], np.float32)
+        for block in frame_blocks(len(rows)):
+            error[block] = np.linalg.norm(estimates[np.minimum(rows[block], len(estimates) - 1)] - positions[block], axis=-1)
         fields.append(Field("estimate error", error, "m"))
     inside = trace.arrays.get("estimate_in_cell")
     if inside is not None and len(inside):
@@ -146,7 +154,7 @@ def replay_scene(trace: Trace, max_frames: int = MAX_FRAMES) -> Scene:
     scene = Scene("avoidance", run_title(trace), outcome_subtitle(trace, ("success", "collisions", "obstacle_collisions", "makespan")),
                   steps, times, positions, views, radius=float(trace.metadata["radius"]),
                   status=arrived.astype(np.uint8), statuses=[{"name": "moving"}, {"name": "arrived", "alpha": 0.45}],
-                  fields=replay_fields(trace, rows, times), shapes=replay_shapes(trace, views), layers=layers,
+                  fields=replay_fields(trace, rows, times, positions), shapes=replay_shapes(trace, views), layers=layers,
                   events=events, trail=int(np.ceil(TRAIL_STEPS / stride)), notes=stride_note(rows, n_states, trace.record_every))
     scene.solids = list(trace.metadata.get("boxes") or []) if is_three_d(trace) else []
     scene.legend = replay_legend(scene)

@@ -93,12 +93,25 @@ def arrived_mask(trace: Trace, steps: np.ndarray) -> np.ndarray:
     return (arrival[None, :] >= 0) & (steps[:, None] >= arrival[None, :])
 
 
+FRAME_BLOCK = 64
+"""Frames computed together by the per-frame fields (bounding their temporaries)."""
+
+
+def frame_blocks(n_frames: int) -> list[slice]:
+    """Consecutive slices of at most :data:`FRAME_BLOCK` frames covering ``n_frames``."""
+    return [slice(start, min(n_frames, start + FRAME_BLOCK)) for start in range(0, n_frames, FRAME_BLOCK)]
+
+
 def speed_field(coords: np.ndarray, times: np.ndarray, unit: str) -> Field:
-    """Speed between a frame and the one before it (0 at the first frame)."""
-    step = np.linalg.norm(np.diff(coords, axis=0), axis=-1)
-    dt = np.diff(times)[:, None]
-    speed = np.divide(step, dt, out=np.zeros_like(step), where=dt > 0)
-    return Field("speed", np.concatenate([np.zeros((1, coords.shape[1])), speed]), unit)
+    """Speed between a frame and the one before it (0 at the first frame), over the time
+    between them (``record_every`` and subsampled frames included)."""
+    speed = np.zeros(coords.shape[:2], np.float32)
+    gaps = np.diff(np.asarray(times, float))
+    for block in frame_blocks(len(coords) - 1):
+        moved = np.linalg.norm(coords[block.start + 1:block.stop + 1] - coords[block], axis=-1)
+        dt = gaps[block][:, None]
+        speed[block.start + 1:block.stop + 1] = np.divide(moved, dt, out=np.zeros_like(moved), where=dt > 0)
+    return Field("speed", speed, unit)
 
 
 SKIPPED_FIELDS = ("step", "kind", "robot", "time")

@@ -55,7 +55,12 @@ def rgba(colour: str, alpha: float = 1.0) -> np.ndarray:
 
 
 ITEMS_PER_BLOCK = 1_000_000
-"""Items (robot positions, layer items) sent to the recording in one call at most."""
+"""Points (robot positions, marks, the corners of ellipses and cells) sent to the recording
+in one call at most."""
+ELLIPSE_SIDES = 24
+"""Sides of the polygon an ellipse is drawn as."""
+POLYGON_POINTS = 12
+"""Points a cell is counted as when sizing the blocks of a ``polygons`` layer."""
 
 
 def frame_blocks(counts: np.ndarray, limit: int | None = None) -> list[tuple[int, int]]:
@@ -223,7 +228,8 @@ def log_layer(rr: Any, rec: Any, scene: Scene, layer: Layer, times: np.ndarray) 
         return
     offsets = np.asarray(a["offsets"], np.int64)
     counts = np.diff(offsets)
-    for start, stop in frame_blocks(counts):
+    points = ELLIPSE_SIDES + 1 if layer.kind == "ellipses" else POLYGON_POINTS if layer.kind == "polygons" else 1
+    for start, stop in frame_blocks(counts, ITEMS_PER_BLOCK // points):
         lo, hi = int(offsets[start]), int(offsets[stop])
         columns = layer_columns(rr, scene, layer, lo, hi, np.repeat(np.arange(start, stop), counts[start:stop]))
         rec.send_columns(entity, indexes=[time_column(rr, times, start, stop)], columns=columns.partition(counts[start:stop]))
@@ -253,9 +259,10 @@ def layer_columns(rr: Any, scene: Scene, layer: Layer, lo: int, hi: int, frame_o
         archetype = rr.Points3D if pts.shape[1] == 3 else rr.Points2D
         return archetype.columns(positions=pts, colors=colours)
     strips = polygon_strips(layer, lo, hi) if layer.kind == "polygons" else ellipse_strips(layer, lo, hi)
-    strips = [_in_world(scene, layer.view, s) for s in strips]
-    archetype = rr.LineStrips3D if strips and strips[0].shape[1] == 3 else rr.LineStrips2D
-    return archetype.columns(strips=strips, colors=colours)
+    three_d = scene.positions.shape[2] == 3
+    if three_d or layer.kind == "polygons":
+        strips = [_in_world(scene, layer.view, s) for s in strips]
+    return (rr.LineStrips3D if three_d else rr.LineStrips2D).columns(strips=strips, colors=colours)
 
 
 def item_colours(scene: Scene, style: dict, robots: np.ndarray) -> np.ndarray:
@@ -271,14 +278,15 @@ def polygon_strips(layer: Layer, lo: int = 0, hi: int | None = None) -> list[np.
     return [np.vstack([vertices[s:e], vertices[s:s + 1]]) for s, e in itertools.pairwise(bounds[lo:hi + 1])]
 
 
-def ellipse_strips(layer: Layer, lo: int = 0, hi: int | None = None, sides: int = 24) -> list[np.ndarray]:
-    """Closed 24-gons of ellipses ``lo`` to ``hi`` of an ``ellipses`` layer (computed together)."""
+def ellipse_strips(layer: Layer, lo: int = 0, hi: int | None = None, sides: int | None = None) -> np.ndarray:
+    """``(E, sides + 1, 2)``: closed polygons (24-gons by default) of ellipses ``lo`` to
+    ``hi`` of an ``ellipses`` layer, computed together."""
+    sides = ELLIPSE_SIDES if sides is None else sides
     xy, shape = layer.arrays["xy"][lo:hi], layer.arrays["shape"][lo:hi]
     t = np.linspace(0.0, 2 * np.pi, sides + 1)
     c, s = np.cos(shape[:, 2:3]), np.sin(shape[:, 2:3])
     u, v = 0.5 * shape[:, 0:1] * np.cos(t), 0.5 * shape[:, 1:2] * np.sin(t)
-    strips = np.stack([xy[:, 0:1] + c * u - s * v, xy[:, 1:2] + s * u + c * v], axis=-1)
-    return list(strips)
+    return np.stack([xy[:, 0:1] + c * u - s * v, xy[:, 1:2] + s * u + c * v], axis=-1)
 
 
 def log_solids(rr: Any, rec: Any, scene: Scene) -> None:

@@ -111,13 +111,17 @@ class Layer:
 @dataclass
 class Field:
     """A value shown when a robot is hovered: ``values`` is ``(n_frames, n_robots)`` (per
-    robot) or ``(n_frames,)`` (the team's); ``labels`` names integer codes, if any."""
+    robot) or ``(n_frames,)`` (the team's), kept as float32 (what the page embeds);
+    ``labels`` names integer codes, if any."""
 
     name: str
     values: np.ndarray
     unit: str = ""
     labels: Sequence[str] | None = None
     digits: int = 3
+
+    def __post_init__(self) -> None:
+        self.values = np.asarray(self.values, np.float32)  # the precision the page shows
 
 
 @dataclass
