@@ -1,7 +1,8 @@
 """Trace size, saving memory, replay page and Rerun export of large avoidance runs.
 
-Part 1 (``--robots``, ``--steps``): a dense B-UAVC circle swap (spacing 0.6 m, radius
-0.2 m, so that many robots report deadlocks and empty cells) is simulated once; then
+Part 1 (``--robots``, ``--steps``): a dense, noisy B-UAVC circle swap (robots of radius
+0.2 m, 0.45 m apart on the circle, σ = 0.25 m, so that many robots report empty cells and
+deadlocks at every step: millions of events) is simulated once; then
 
 * saving: ``Trace.save`` under ``tracemalloc`` — the peak of memory allocated while
   saving, against the bytes of the arrays it writes (the trace's arrays and the event
@@ -49,12 +50,16 @@ print(f"{resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024} {time.perf_c
 """
 
 
+SPACING, SIGMA = 0.45, 0.25
+"""Distance between neighbours on the circle [m] and the estimates' noise [m]."""
+
+
 def dense_swap(n_robots: int, steps: int):
-    """The shipped circle swap with ``n_robots`` robots 0.6 m apart on the circle."""
-    radius = n_robots * 0.6 / (2 * np.pi)
+    """The shipped circle swap with ``n_robots`` robots :data:`SPACING` apart on the circle."""
+    radius = n_robots * SPACING / (2 * np.pi)
     bound = radius + 2.0
     return robofleet.load_scenario("avoidance/circle_swap", {"robots.n": n_robots, "max_steps": steps, "robots.layout.radius": radius,
-                                                           "workspace.bounds": [-bound, -bound, bound, bound]})
+                                                           "robots.sigma": SIGMA, "workspace.bounds": [-bound, -bound, bound, bound]})
 
 
 def simulated(n_robots: int, steps: int, seed: int) -> tuple[Trace, float]:
