@@ -372,7 +372,8 @@ def per_frame(items: Sequence[Sequence[Sequence[float]]], width: int) -> tuple[n
 
 
 def frames_of_steps(steps: np.ndarray, frame_steps: np.ndarray) -> np.ndarray:
-    """The first frame whose state index is ≥ each step (clipped to the last frame)."""
+    """The first frame whose step is ≥ each step (clipped to the last frame): the frame
+    covering it, frame ``f`` covering the steps after frame ``f − 1``'s up to its own."""
     return np.minimum(np.searchsorted(frame_steps, np.asarray(steps), side="left"), len(frame_steps) - 1)
 
 
