@@ -2,7 +2,7 @@
 
 Part 1 (``--robots``, ``--steps``): a dense, noisy B-UAVC circle swap (robots of radius
 0.2 m, 0.45 m apart on the circle, σ = 0.25 m, so that many robots report empty cells and
-deadlocks at every step: millions of events) is simulated once; then
+deadlocks at every step: hundreds of thousands of events) is simulated once; then
 
 * saving: ``Trace.save`` under ``tracemalloc`` — the peak of memory allocated while
   saving, against the bytes of the arrays it writes (the trace's arrays and the event

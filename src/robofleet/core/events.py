@@ -90,11 +90,22 @@ def merge_kinds(kinds: Iterable[str]) -> str:
     return "json"
 
 
-def json_text(value: Any) -> str:
-    """Strict JSON text of one plain value (non-finite numbers as ``null``)."""
-    from .trace import to_plain
+def json_safe(value: Any) -> Any:
+    """``value`` with numpy values as plain Python, tuples as lists, dict keys as strings
+    and non-finite numbers as ``None`` (recursively)."""
+    value = plain(value)
+    if isinstance(value, dict):
+        return {str(k): json_safe(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [json_safe(v) for v in value]
+    if isinstance(value, float) and not np.isfinite(value):
+        return None
+    return value
 
-    return json.dumps(to_plain(value, json_safe=True), separators=(",", ":"), allow_nan=False)
+
+def json_text(value: Any) -> str:
+    """Strict JSON text of one value (non-finite numbers as ``null``)."""
+    return json.dumps(json_safe(value), separators=(",", ":"), allow_nan=False)
 
 
 @dataclass(frozen=True)
