@@ -6,7 +6,10 @@ A valid trace of each family is damaged in every way the rules of
 :mod:`robofleet.core.trace_check` cover: each metadata and results field given a value of
 another kind or removed, each field of an event of each kind given another kind (or
 removed), each array reshaped, retyped, removed, or joined by an unlisted one, the files
-truncated or replaced, the document's own structure broken."""
+truncated or replaced, the document's own structure broken. Events are columns of
+``trace.npz`` (version 4: each column damaged like any array, and its values or its
+description in ``trace.json`` broken); a version 3 trace (events a list in ``trace.json``)
+still loads, and each field of its events damaged is named the same way."""
 
 from __future__ import annotations
 
@@ -22,6 +25,7 @@ import pytest
 import robofleet
 from robofleet.cli.main import main
 from robofleet.core.errors import TraceError
+from robofleet.core.events import Events
 from robofleet.core.trace import Trace
 from robofleet.scenarios import FAMILIES
 
@@ -75,17 +79,6 @@ def damages_of(directory: Path) -> dict[str, tuple[str, str, Damage]]:
             add(f"{part}.{key} of another kind", "trace.json", f"{part}.{key}",
                 lambda d, a, part=part, key=key, value=value: d[part].__setitem__(key, other_kind(value)))
             add(f"{part}.{key} removed", "trace.json", f"{part}.{key}", lambda d, a, part=part, key=key: d[part].pop(key))
-    first = {}
-    for index, event in enumerate(doc["events"]):
-        first.setdefault(event["kind"], index)
-    for kind, index in first.items():
-        required = {name for name, k in doc["schema"]["events"][kind].items() if not k.startswith("optional ")}
-        for key, value in doc["events"][index].items():
-            add(f"events[{index}].{key} of another kind", "trace.json", f"events[{index}].{key}",
-                lambda d, a, index=index, key=key, value=value: d["events"][index].__setitem__(key, other_kind(value)))
-            if key in required:
-                add(f"events[{index}].{key} removed", "trace.json", f"events[{index}].{key}",
-                    lambda d, a, index=index, key=key: d["events"][index].pop(key))
     for key, array in arrays.items():
         if array.ndim and len(array):
             add(f"{key} one row short", "trace.npz", key, lambda d, a, key=key: a.__setitem__(key, a[key][:-1]))
@@ -98,12 +91,25 @@ def damages_of(directory: Path) -> dict[str, tuple[str, str, Damage]]:
     add("family of another kind", "trace.json", "family", lambda d, a: d.__setitem__("family", 7))
     add("metadata not an object", "trace.json", "metadata", lambda d, a: d.__setitem__("metadata", [1]))
     add("results not an object", "trace.json", "results", lambda d, a: d.__setitem__("results", "x"))
-    add("events not a list", "trace.json", "events", lambda d, a: d.__setitem__("events", {"step": 1}))
-    add("an event not an object", "trace.json", "events[0]", lambda d, a: d.__setitem__("events", [5]))
-    add("a step past the run", "trace.json", "events[0].step",
-        lambda d, a: d.__setitem__("events", [{"step": d["metadata"]["n_steps"] + 1, "kind": "x"}]))
-    add("a robot that is not in the run", "trace.json", "events[0].robot",
-        lambda d, a: d.__setitem__("events", [{"step": 0, "kind": "x", "robot": d["metadata"]["n_robots"]}]))
+    add("events not a table", "trace.json", "events", lambda d, a: d.__setitem__("events", {"step": 1}))
+    add("events a list", "trace.json", "events", lambda d, a: d.__setitem__("events", [5]))
+    add("an event count off by one", "trace.json", "events.count", lambda d, a: d["events"].__setitem__("count", d["events"]["count"] + 1))
+    add("an event kind table broken", "trace.json", "events.kinds", lambda d, a: d["events"].__setitem__("kinds", ["x", "x"]))
+    add("an event field of an unknown kind", "trace.json", "events.fields.z",
+        lambda d, a: d["events"]["fields"].__setitem__("z", {"kind": "tensor", "partial": False}))
+    if len(arrays["events.step"]):
+        add("a step past the run", "trace.npz", "events.step",
+            lambda d, a: a["events.step"].__setitem__(-1, d["metadata"]["n_steps"] + 1))
+        add("a kind code past the table", "trace.npz", "events.kind",
+            lambda d, a: a["events.kind"].__setitem__(0, len(d["events"]["kinds"])))
+    if "events.robot" in arrays and len(arrays["events.robot"]):
+        add("a robot that is not in the run", "trace.npz", "events.robot",
+            lambda d, a: a["events.robot"].__setitem__(0, d["metadata"]["n_robots"]))
+    for name, entry in doc["events"]["fields"].items():
+        add(f"event field {name} undescribed", "trace.npz", f"events.{name}", lambda d, a, name=name: d["events"]["fields"].pop(name))
+        if entry["kind"].startswith("list of"):
+            add(f"event field {name}: offsets past the items", "trace.npz", f"events.{name}:offsets",
+                lambda d, a, name=name: a[f"events.{name}:offsets"].__setitem__(-1, len(a[f"events.{name}"]) + 1))
     add("schema removed", "trace.json", "schema", lambda d, a: d.pop("schema"))
     add("schema of another kind", "trace.json", "schema", lambda d, a: d.__setitem__("schema", [1]))
     add("schema null", "trace.json", "schema", lambda d, a: d.__setitem__("schema", None))
@@ -115,6 +121,47 @@ def damages_of(directory: Path) -> dict[str, tuple[str, str, Damage]]:
     add("a negative seed", "trace.json", "metadata.seed", lambda d, a: d["metadata"].__setitem__("seed", -1))
     add("record_every zero", "trace.json", "metadata.record_every", lambda d, a: d["metadata"].__setitem__("record_every", 0))
     return out
+
+
+def event_damages_of_version_3(directory: Path) -> dict[str, tuple[str, str, Damage]]:
+    """name → (file, field, damage) of the events of the version 3 form of a trace."""
+    doc = json.loads((directory / "trace.json").read_text())
+    out: dict[str, tuple[str, str, Damage]] = {}
+    first = {}
+    for index, event in enumerate(doc["events"]):
+        first.setdefault(event["kind"], index)
+    for kind, index in first.items():
+        required = {name for name, k in doc["schema"]["events"][kind].items() if not k.startswith("optional ")}
+        for key, value in doc["events"][index].items():
+            out[f"events[{index}].{key} of another kind"] = ("trace.json", f"events[{index}].{key}",
+                lambda d, a, index=index, key=key, value=value: d["events"][index].__setitem__(key, other_kind(value)))
+            if key in required:
+                out[f"events[{index}].{key} removed"] = ("trace.json", f"events[{index}].{key}",
+                                                        lambda d, a, index=index, key=key: d["events"][index].pop(key))
+    out["events not a list"] = ("trace.json", "events", lambda d, a: d.__setitem__("events", {"step": 1}))
+    out["an event not an object"] = ("trace.json", "events[0]", lambda d, a: d.__setitem__("events", [5]))
+    out["a step past the run"] = ("trace.json", "events[0].step",
+                                  lambda d, a: d.__setitem__("events", [{"step": d["metadata"]["n_steps"] + 1, "kind": "x"}]))
+    out["a robot that is not in the run"] = ("trace.json", "events[0].robot",
+                                             lambda d, a: d.__setitem__("events", [{"step": 0, "kind": "x", "robot": d["metadata"]["n_robots"]}]))
+    return out
+
+
+def as_version_3(doc: dict, arrays: dict) -> None:
+    """The trace as version 3 wrote it: its events a list of objects in ``trace.json``."""
+    events = Events.from_arrays(doc["events"], arrays)
+    for name in [n for n in arrays if n.startswith("events.")]:
+        arrays.pop(name)
+        doc["schema"]["arrays"].pop(name)
+    doc["events"] = list(events)
+    doc["version"] = 3
+
+
+def as_version_2(doc: dict, arrays: dict) -> None:
+    """The trace as version 2 wrote it: version 3 without the schema."""
+    as_version_3(doc, arrays)
+    doc.pop("schema")
+    doc["version"] = 2
 
 
 def reshaped_positions_and_schema(doc: dict, arrays: dict) -> None:
@@ -166,6 +213,23 @@ def test_every_damage_is_one_line_from_trace_load_and_from_view(family, saved, t
         assert_one_line_naming(err.strip(), run / file, field)
 
 
+@pytest.mark.parametrize("family", list(RUNS))
+def test_every_event_damage_of_a_version_3_trace_is_one_line(family, saved, tmp_path, capsys):
+    old = damaged_copy(saved[family], tmp_path / "v3", as_version_3)
+    loaded = Trace.load(old)
+    assert json.loads((old / "trace.json").read_text())["version"] == 3 and loaded.events == Trace.load(saved[family]).events
+    for index, (name, (file, field, damage)) in enumerate(event_damages_of_version_3(old).items()):
+        run = damaged_copy(old, tmp_path / str(index), damage)
+        with pytest.raises(TraceError) as info:
+            Trace.load(run)
+        assert_one_line_naming(str(info.value), run / file, field)
+        with pytest.raises(SystemExit) as stop:
+            main(["view", str(run), "--no-open"])
+        err = capsys.readouterr().err
+        assert stop.value.code == 2 and err.count("\n") == 1, (name, err)
+        assert_one_line_naming(err.strip(), run / file, field)
+
+
 @pytest.mark.parametrize("name", list(FILE_DAMAGES))
 def test_damaged_files_are_one_line_naming_the_file(name, saved, tmp_path, capsys):
     file, rewrite = FILE_DAMAGES[name]
@@ -190,13 +254,10 @@ def test_the_command_line_prints_one_line_and_exits_2(saved, tmp_path, robofleet
 def test_a_trace_without_schema_still_loads_and_view_stays_one_line(saved, tmp_path, capsys):
     """A version 2 trace (written before the schema was recorded) loads; a value of the
     wrong kind in it, that only the replay meets, still ends as one line."""
-    def as_version_2(doc, arrays):
-        doc.pop("schema")
-        doc["version"] = 2
-
     for family, directory in saved.items():
         run = damaged_copy(directory, tmp_path / family, as_version_2)
         assert Trace.load(run).summary() == Trace.load(directory).summary()
+        assert Trace.load(run).events == Trace.load(directory).events
         doc = json.loads((run / "trace.json").read_text())
         for index, key in enumerate(doc["metadata"]):
             if key in ("scenario", "seed", "n_robots", "n_steps", "max_steps", "record_every", "wall_seconds"):

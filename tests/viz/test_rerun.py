@@ -74,3 +74,22 @@ def test_a_recording_is_replaced_whole_and_only_if_robofleet_wrote_it(traces, tm
     with pytest.raises(SystemExit) as stop:
         main(["view", str(run), "--no-open", "--out", str(tmp_path / "page.html"), "--rerun", str(foreign)])
     assert stop.value.code == 2 and "--rerun" in capsys.readouterr().err
+
+
+def test_a_recording_sent_in_small_blocks_holds_the_same_rows(traces, tmp_path, monkeypatch):
+    """Robots, layers and events sent a few items at a time (as large scenes are) give the
+    same rows at the same times as one block each."""
+    from robofleet.viz.replay import rerun_export
+
+    scene = BUILDERS["avoidance"].replay_scene(traces["avoidance"])
+    whole = read_back(rerun_export.write_rrd(scene, tmp_path / "whole.rrd"))
+    monkeypatch.setattr(rerun_export, "ITEMS_PER_BLOCK", 7)
+    monkeypatch.setattr(rerun_export, "EVENTS_PER_CHUNK", 3)
+    blocks = read_back(rerun_export.write_rrd(scene, tmp_path / "blocks.rrd"))
+    assert set(whole) == set(blocks)
+    for entity, entry in whole.items():
+        assert entry["times"] == blocks[entity]["times"], entity
+        for column in entry["columns"]:
+            if column.endswith(("positions", "strips", "text", "colors")):
+                rows = lambda e: sorted(str(r) for b in e["batches"] if column in b.column_names for r in b.column(column).to_pylist())  # noqa: E731
+                assert rows(entry) == rows(blocks[entity]), (entity, column)

@@ -877,7 +877,7 @@ def simulate(spec: Spec, seed: int | None = None, progress: bool = False) -> Tra
     if cell_log:
         record_cell_log(rec, cell_log)
     arrays = rec.arrays()
-    counts = replace(world.counts(), empty_cell_steps=sum(e["kind"] == "empty_cell" for e in rec.events))
+    counts = replace(world.counts(), empty_cell_steps=rec.events.count_of("empty_cell"))
     results = tally.results(dt=spec.dt, step_seconds=arrays["step_seconds"], arrivals=arrays["arrival_steps"], counts=counts,
                             premise=world.cell_model is not None)
     results["success"] = bool(results["success"] and world.settled(last_estimates[0]))  # nobody left stepped aside

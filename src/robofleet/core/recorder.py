@@ -54,6 +54,7 @@ import numpy as np
 
 from .budget import HOW_TO_RAISE, format_bytes, memory_budget, recorded_rows
 from .errors import ConfigError, short_repr
+from .events import EventLog
 from .progress import tracked
 from .trace import Trace
 from .workspace import Workspace
@@ -176,7 +177,7 @@ class Recorder:
             raise ConfigError(f"progress: expected True or False, received {short_repr(progress)}")
         self.label = label
         self.progress = bool(progress)
-        self.events: list[dict[str, Any]] = []
+        self.events = EventLog()
         self.steps_taken = 0
         self.arrival_steps = np.full(self.n_robots, -1, dtype=np.int64)
         self._state: dict[str, RecordedArray] = {}
@@ -258,13 +259,13 @@ class Recorder:
             seconds.put_row(k, (0.0 if np.isnan(so_far) else so_far) + time.perf_counter() - t0)
 
     def event(self, step: int, kind: str, **fields: Any) -> None:
-        """Record an event ``{"step": step, "kind": kind, **fields}``."""
+        """Record an event ``{"step": step, "kind": kind, **fields}`` (every step's, whatever ``record_every``)."""
         self.events.append({"step": int(step), "kind": kind, **fields})
 
     def events_for(self, step: int, kind: str, robots: np.ndarray) -> None:
-        """One ``kind`` event per robot index flagged in the boolean mask ``robots``."""
-        for r in np.flatnonzero(robots):
-            self.event(step, kind, robot=int(r))
+        """One ``kind`` event per robot index flagged in the boolean mask ``robots`` (one
+        batch of columns, :meth:`~robofleet.core.events.EventLog.add`)."""
+        self.events.add(int(step), kind, robot=np.flatnonzero(robots))
 
     def arrive(self, step: int, arrived: np.ndarray) -> None:
         """Latch arrivals: robots in the mask ``arrived`` without an arrival step get ``step``
@@ -323,4 +324,4 @@ class Recorder:
         budget and ``record_every``."""
         core = {"scenario": scenario, "seed": int(seed), "n_robots": self.n_robots, "n_steps": self.steps_taken,
                 "max_steps": self.max_steps, "record_every": self.record_every, "wall_seconds": self.wall_seconds}
-        return Trace(family, self.arrays(), list(self.events), {**core, **(metadata or {})}, dict(results or {}), workspace)
+        return Trace(family, self.arrays(), self.events.table(), {**core, **(metadata or {})}, dict(results or {}), workspace)

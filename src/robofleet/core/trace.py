@@ -3,11 +3,18 @@
 Arrays are per-step, shaped ``(n_steps, n_robots, dim)`` (positions include the initial
 state, so ``n_steps = steps + 1``); a run with ``record_every`` k > 1
 (:attr:`Trace.record_every`) keeps the rows of steps 0, k, 2k, … only, its row ``j``
-being step ``j·k`` (``metadata["n_steps"]`` still counts every step). Events are small dicts (``{"step": 12, "kind":
-"deadlock", "robot": 3}``). ``metadata`` holds what is needed to interpret the arrays
+being step ``j·k`` (``metadata["n_steps"]`` still counts every step). Events
+(``{"step": 12, "kind": "deadlock", "robot": 3}``, one per step they happened at, whatever
+``record_every``) are an :class:`~robofleet.core.events.Events` table: columns saved as
+arrays of ``trace.npz`` (``events.step``, ``events.kind``, ``events.robot`` …), read as a
+list of dicts or by column. ``metadata`` holds what is needed to interpret the arrays
 (family, dt, radius, goals, workspace...), ``results`` the scalar outcomes the simulation
 decided (e.g. ``deadlock: true``), written by the family's ``metrics.py`` so that
 every sweep can report them; :meth:`Trace.summary` puts the core keys in front of them.
+
+Versions: 4 stores the events as columns (``trace.json`` describes them: count, kind table,
+fields); 3 wrote them as a list of objects in ``trace.json`` with the schema, 2 without
+the schema. :meth:`Trace.load` reads all three; :meth:`Trace.save` writes version 4.
 """
 
 from __future__ import annotations
@@ -21,14 +28,17 @@ from typing import Any
 
 import numpy as np
 
-from .errors import RobofleetError, TraceError, one_line, short_repr
+from .errors import ConfigError, RobofleetError, TraceError, one_line, short_repr
+from .events import PREFIX as EVENT_PREFIX
+from .events import Events
 from .files import staged_files
-from .trace_check import check_arrays, check_document, schema_of
+from .trace_check import check_arrays, check_document, check_event_columns, schema_of
 from .workspace import Region, Workspace
 
-TRACE_VERSION = 3
-READABLE_VERSIONS = (2, 3)
-"""Versions :meth:`Trace.load` reads: 3 records the schema of what it wrote, 2 did not."""
+TRACE_VERSION = 4
+READABLE_VERSIONS = (2, 3, 4)
+"""Versions :meth:`Trace.load` reads: 4 stores events as columns of ``trace.npz``, 3 as a
+list in ``trace.json`` with the schema of what it wrote, 2 without the schema."""
 TRACE_KEYS = ("family", "events", "metadata", "results")
 """The keys of ``trace.json`` besides ``version``, ``workspace`` and ``schema``."""
 TRACE_FILES = ("trace.npz", "trace.json")
@@ -44,7 +54,9 @@ class Trace:
     ----------
     family: the scenario family (``"avoidance"``, ``"coordination"``, ...).
     arrays: name → array; ``positions`` (true positions) is expected for motion families.
-    events: list of event dicts, each with at least ``step`` and ``kind``.
+    events: the events (:class:`~robofleet.core.events.Events`, each with at least ``step``
+        and ``kind``): reads as a list of dicts, or by column for large runs; a list of
+        dicts given here is turned into the table.
     metadata: JSON-serialisable description of the run (``dt``, ``radius``, ``seed``...).
     results: scalar outcomes decided by the simulation, merged into :meth:`summary`.
     workspace: the workspace the run took place in, if any.
@@ -52,10 +64,14 @@ class Trace:
 
     family: str
     arrays: dict[str, np.ndarray] = field(default_factory=dict)
-    events: list[dict] = field(default_factory=list)
+    events: Events = field(default_factory=Events.empty)
     metadata: dict[str, Any] = field(default_factory=dict)
     results: dict[str, Any] = field(default_factory=dict)
     workspace: Workspace | None = None
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.events, Events):
+            self.events = Events.from_records(self.events)
 
     @property
     def positions(self) -> np.ndarray:
@@ -91,19 +107,32 @@ class Trace:
         return to_plain({**core, **{k: v for k, v in self.results.items() if k not in core}})
 
     def save(self, directory: str | Path) -> Path:
-        """Write ``trace.npz`` and ``trace.json`` into ``directory`` (created if needed).
+        """Write ``trace.npz`` (the arrays and the event columns) and ``trace.json``
+        (metadata, results, workspace, the events' description and the schema) into
+        ``directory`` (created if needed).
 
         Both files replace an earlier trace's together (:func:`~robofleet.core.files.staged_files`):
         stopped at any moment, the directory holds the earlier trace or this one, complete.
-        ``trace.json`` records the schema of what was written (see :mod:`~robofleet.core.trace_check`).
+        The arrays are written one after the other, each in chunks of
+        :data:`SAVE_CHUNK_BYTES` (:func:`write_npz`), so saving needs little memory beyond
+        the arrays themselves.
+
+        Raises
+        ------
+        ConfigError
+            An array's name starts with ``events.`` (the names of the event columns).
         """
         d = Path(directory)
         arrays = {name: np.asarray(array) for name, array in self.arrays.items()}
-        doc = to_plain({"version": TRACE_VERSION, "family": self.family, "events": self.events, "metadata": self.metadata,
+        clash = next((name for name in arrays if name.startswith(EVENT_PREFIX)), None)
+        if clash is not None:
+            raise ConfigError(f"arrays: {clash}: expected a name not starting with {EVENT_PREFIX!r} (the event columns), received {clash!r}")
+        stored = {**arrays, **self.events.to_arrays()}
+        doc = to_plain({"version": TRACE_VERSION, "family": self.family, "events": self.events.describe(), "metadata": self.metadata,
                         "results": self.results, "workspace": _workspace_to_json(self.workspace)}, json_safe=True)
-        doc["schema"] = schema_of(doc, arrays)
+        doc["schema"] = schema_of(doc, stored, self.events)
         with staged_files(d, TRACE_FILES) as staging:
-            np.savez_compressed(staging.path / "trace.npz", **arrays)
+            write_npz(staging.path / "trace.npz", stored)
             (staging.path / "trace.json").write_text(dumps_json(doc), encoding="utf-8")
         return d
 
@@ -125,11 +154,35 @@ class Trace:
         doc = _read_document(d / "trace.json")
         arrays = _read_arrays(d / "trace.npz")
         check_arrays(arrays, doc, str(d / "trace.npz"))
+        columns = {name: arrays.pop(name) for name in [n for n in arrays if n.startswith(EVENT_PREFIX)]} if doc["version"] >= 4 else {}
+        events = check_event_columns(doc, columns, str(d / "trace.json"), str(d / "trace.npz")) if doc["version"] >= 4 \
+            else Events.from_records(doc["events"])
         try:
             workspace = _workspace_from_json(doc.get("workspace"))
         except (KeyError, TypeError, ValueError, AttributeError, RobofleetError) as exc:
             raise TraceError(f"{d / 'trace.json'}: workspace: expected bounds, obstacles and regions, received an unreadable one ({one_line(exc)})") from None
-        return cls(doc["family"], arrays, doc["events"], doc["metadata"], doc["results"], workspace)
+        return cls(doc["family"], arrays, events, doc["metadata"], doc["results"], workspace)
+
+
+SAVE_CHUNK_BYTES = 1 << 20
+"""Bytes of an array copied and deflated at a time by :func:`write_npz`."""
+
+
+def write_npz(path: Path, arrays: dict[str, np.ndarray]) -> None:
+    """Write ``arrays`` as a compressed ``.npz`` (what ``np.load`` reads, as
+    ``np.savez_compressed`` writes it), each array row block by row block, at most
+    :data:`SAVE_CHUNK_BYTES` (or one row) copied at a time."""
+    with zipfile.ZipFile(path, "w", compression=zipfile.ZIP_DEFLATED, allowZip64=True) as archive:
+        for name, array in arrays.items():
+            with archive.open(f"{name}.npy", "w", force_zip64=True) as member:
+                header = {"descr": np.lib.format.dtype_to_descr(array.dtype), "fortran_order": False, "shape": array.shape}
+                np.lib.format.write_array_header_1_0(member, header)
+                if array.ndim == 0:
+                    member.write(array.tobytes())
+                    continue
+                rows = max(1, SAVE_CHUNK_BYTES // max(1, array[:1].nbytes))
+                for start in range(0, len(array), rows):
+                    member.write(np.ascontiguousarray(array[start:start + rows]).tobytes())
 
 
 def _read_document(path: Path) -> dict[str, Any]:

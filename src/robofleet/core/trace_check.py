@@ -4,9 +4,19 @@ naming the file and the field rather than failing later, somewhere else.
 
 Rules, for every trace:
 
-* ``family`` is a non-empty string; ``metadata`` and ``results`` are objects; ``events`` is
-  a list of objects, each with an integer ``step`` in ``[0, n_steps]``, a non-empty string
-  ``kind`` and, if it names one, an integer ``robot`` in ``[0, n_robots)``;
+* ``family`` is a non-empty string; ``metadata`` and ``results`` are objects;
+* events (version 4, :mod:`~robofleet.core.events`): ``trace.json``'s ``events`` is an
+  object with ``count`` (an integer ≥ 0), ``kinds`` (distinct non-empty strings) and
+  ``fields`` (each a column kind, whether some events lack it, and its text table for
+  ``string`` and ``json`` fields); ``trace.npz`` holds ``events.step`` (``count`` integers
+  in ``[0, n_steps]``), ``events.kind`` (``count`` codes into ``kinds``) and each field's
+  column: values of its kind (codes into its table for texts), a ``:present`` mask of
+  ``count`` booleans when partial, ``:offsets`` (``count + 1`` integers from 0, never
+  decreasing, ending at the number of items) for lists; a ``robot`` field holds robot
+  indices in ``[0, n_robots)``; no other ``events.`` array;
+* events (versions 2 and 3): ``events`` is a list of objects, each with an integer
+  ``step`` in ``[0, n_steps]``, a non-empty string ``kind`` and, if it names one, an
+  integer ``robot`` in ``[0, n_robots)``;
 * the core metadata (:data:`CORE_METADATA`) have their types: ``scenario`` a string,
   ``seed`` an integer ≥ 0 (or null), ``n_robots``, ``n_steps`` integers ≥ 0,
   ``max_steps``, ``record_every`` integers ≥ 1, ``wall_seconds`` a number (or null);
@@ -16,7 +26,7 @@ Rules, for every trace:
 
 A trace written by this version also records, in ``trace.json``, the *schema* of what it
 wrote (:func:`schema_of`): the kind of every metadata and results value, the fields of
-each event kind, and the dtype and shape of every array. Loading checks the file against
+each event kind, and the dtype and shape of every array (the event columns included). Loading checks the file against
 it, so a value whose kind changed since it was written (a number turned into a string, a
 list into a number, a field or an array removed, an array reshaped or retyped) is named.
 A kind is ``null``, ``boolean``, ``integer``, ``number``, ``string``, ``object``, or
@@ -32,6 +42,7 @@ import numpy as np
 
 from .budget import recorded_rows
 from .errors import TraceError, short_repr
+from .events import COLUMN_KINDS, LIST_KINDS, OFFSETS, PREFIX, PRESENT, SCALAR_KINDS, TEXT_KINDS, Column, Events
 
 CORE_METADATA = {  # field: (kind, minimum, null allowed)
     "scenario": ("string", None, False),
@@ -89,21 +100,14 @@ def accepts(expected: str, received: str) -> bool:
     return True
 
 
-def schema_of(doc: Mapping[str, Any], arrays: Mapping[str, np.ndarray]) -> dict[str, Any]:
-    """The schema of a plain trace document (its ``metadata``, ``results`` and ``events``)
-    and of its arrays, as written into ``trace.json``."""
-    events: dict[str, dict[str, list[str]]] = {}
-    counts: dict[str, int] = {}
-    for event in doc["events"]:
-        kind = str(event.get("kind"))
-        counts[kind] = counts.get(kind, 0) + 1
-        for name, value in event.items():
-            events.setdefault(kind, {}).setdefault(name, []).append(kind_of(value))
+def schema_of(doc: Mapping[str, Any], arrays: Mapping[str, np.ndarray], events: Events) -> dict[str, Any]:
+    """The schema of a plain trace document (its ``metadata`` and ``results``), of its
+    events (the fields of each kind, from the columns) and of its arrays, as written into
+    ``trace.json``."""
     return {
         "metadata": {k: kind_of(v) for k, v in doc["metadata"].items()},
         "results": {k: kind_of(v) for k, v in doc["results"].items()},
-        "events": {kind: {name: ("" if len(found) == counts[kind] else OPTIONAL) + common_kind(found)
-                          for name, found in fields.items()} for kind, fields in events.items()},
+        "events": events.fields_by_kind(),
         "arrays": {name: {"dtype": str(a.dtype), "shape": list(a.shape)} for name, a in arrays.items()},
     }
 
@@ -117,7 +121,10 @@ def check_document(doc: dict[str, Any], where: str) -> None:
     for key, value in (("metadata", metadata), ("results", results)):
         if not isinstance(value, dict):
             fail(where, key, "an object", value)
-    if not isinstance(events, list):
+    columnar = doc.get("version", 0) >= 4
+    if columnar:
+        check_event_table(events, where)
+    elif not isinstance(events, list):
         fail(where, "events", "a list of events", events)
     for name, (kind, minimum, nullable) in CORE_METADATA.items():
         if name in metadata:
@@ -127,7 +134,7 @@ def check_document(doc: dict[str, Any], where: str) -> None:
         check_schema_shape(schema, where)
         check_values(metadata, schema["metadata"], "metadata", where)
         check_values(results, schema["results"], "results", where)
-    for index, event in enumerate(events):
+    for index, event in enumerate([] if columnar else events):
         check_event(event, index, metadata, (schema or {}).get("events"), where)
 
 
@@ -189,6 +196,91 @@ def check_event(event: Any, index: int, metadata: dict[str, Any], kinds: dict[st
                 fail(where, f"{field}.{name}", f"a value of kind {kind} (as in every {event['kind']} event written)", None, received="nothing")
         elif not accepts(kind, kind_of(event[name])):
             fail(where, f"{field}.{name}", f"a value of kind {kind} (as written)", event[name])
+
+
+def check_event_table(table: Any, where: str) -> None:
+    """``trace.json``'s description of the event columns (version 4)."""
+    if not isinstance(table, dict) or any(key not in table for key in ("count", "kinds", "fields")):
+        fail(where, "events", "an object with count, kinds and fields", table)
+    if kind_of(table["count"]) != "integer" or table["count"] < 0:
+        fail(where, "events.count", "an integer ≥ 0", table["count"])
+    kinds = table["kinds"]
+    if not isinstance(kinds, list) or any(not isinstance(k, str) or not k for k in kinds) or len(set(kinds)) != len(kinds):
+        fail(where, "events.kinds", "a list of distinct non-empty strings", kinds)
+    if not isinstance(table["fields"], dict):
+        fail(where, "events.fields", "an object", table["fields"])
+    for name, entry in table["fields"].items():
+        field = f"events.fields.{name}"
+        if name in ("step", "kind") or not isinstance(entry, dict) or entry.get("kind") not in COLUMN_KINDS \
+                or not isinstance(entry.get("partial"), bool):
+            fail(where, field, f"an object with a kind (one of {list(COLUMN_KINDS)}) and partial (true or false)", entry)
+        labels = entry.get("labels")
+        if entry["kind"] in TEXT_KINDS and (not isinstance(labels, list) or any(not isinstance(t, str) for t in labels)):
+            fail(where, f"{field}.labels", "a list of strings", labels, received=None if "labels" in entry else "nothing")
+
+
+def check_event_columns(doc: dict[str, Any], columns: dict[str, np.ndarray], json_where: str, where: str) -> Events:
+    """The event columns of ``trace.npz`` (named ``where``) against their description in
+    ``trace.json`` (named ``json_where``) and the metadata; the table they make."""
+    table, metadata = doc["events"], doc["metadata"]
+    count, kinds = table["count"], table["kinds"]
+    n_steps, n_robots = metadata.get("n_steps"), metadata.get("n_robots")
+    expected = {PREFIX + "step", PREFIX + "kind"}
+    steps = event_array(columns, "step", None, "iu", where)
+    if len(steps) != count:
+        fail(json_where, "events.count", f"the number of events in {where} ({len(steps)})", count)
+    bound_values(steps, 0, n_steps if isinstance(n_steps, int) else None, PREFIX + "step", "steps", "n_steps", where)
+    codes = event_array(columns, "kind", count, "iu", where)
+    bound_values(codes, 0, len(kinds) - 1, PREFIX + "kind", "codes into events.kinds", f"{len(kinds)} kinds in {json_where}", where)
+    fields = {}
+    for name, entry in table["fields"].items():
+        kind = entry["kind"]
+        present = offsets = None
+        if entry["partial"]:
+            present = event_array(columns, name + PRESENT, count, "b", where)
+            expected.add(PREFIX + name + PRESENT)
+        if kind in LIST_KINDS:
+            offsets = event_array(columns, name + OFFSETS, count + 1, "iu", where)
+            expected.add(PREFIX + name + OFFSETS)
+        dtype_kinds = {"integer": "iu", "number": "fiu", "boolean": "b"}.get(kind.removeprefix("list of "), "iu")
+        values = event_array(columns, name, None if offsets is not None else count, dtype_kinds, where)
+        expected.add(PREFIX + name)
+        if offsets is not None and (len(offsets) and offsets[0] != 0 or np.any(np.diff(offsets) < 0) or offsets[-1] != len(values)):
+            fail(where, PREFIX + name + OFFSETS, f"offsets from 0, never decreasing, ending at {len(values)} (the items)", None,
+                 received="others")
+        shown = values if present is None or offsets is not None else values[present]
+        if kind in TEXT_KINDS:
+            labels = entry["labels"]
+            bound_values(shown, 0, len(labels) - 1, PREFIX + name, "codes into its table", f"{len(labels)} texts in {json_where}", where)
+        if name == "robot" and kind == "integer":
+            bound_values(shown, 0, n_robots - 1 if isinstance(n_robots, int) else None, PREFIX + name, "robot indices", "n_robots", where)
+        dtype = SCALAR_KINDS.get(kind.removeprefix("list of "), np.int32)
+        fields[name] = Column(kind, values.astype(dtype, copy=False), present, offsets, tuple(entry.get("labels") or ()))
+    extra = sorted(set(columns) - expected)
+    if extra:
+        fail(where, extra[0], f"only the event columns {json_where} describes", None, received=f"the undescribed array {extra[0]!r}")
+    return Events(steps, codes, kinds, fields)
+
+
+def event_array(columns: dict[str, np.ndarray], name: str, rows: int | None, kinds: str, where: str) -> np.ndarray:
+    """The event column ``events.<name>``: one-dimensional, of dtype kinds ``kinds``, ``rows`` long (when given)."""
+    array = columns.get(PREFIX + name)
+    words = {"iu": "integers", "fiu": "numbers", "b": "booleans"}[kinds]
+    if array is None or array.ndim != 1 or array.dtype.kind not in kinds or (rows is not None and len(array) != rows):
+        fail(where, PREFIX + name, f"{rows if rows is not None else 'a list of'} {words}", None,
+             received="nothing" if array is None else f"{array.shape} of {array.dtype}")
+    return array
+
+
+def bound_values(values: np.ndarray, low: int, high: int | None, name: str, what: str, source: str, where: str) -> None:
+    """Every value in ``[low, high]`` (``high`` ``None``: no upper bound)."""
+    if not len(values):
+        return
+    lo, hi = values.min(), values.max()
+    if lo < low or (high is not None and hi > high):
+        bad = lo if lo < low else hi
+        span = f"[{low}, {high}] ({source})" if high is not None else f"≥ {low}"
+        fail(where, name, f"{what} in {span}", bad.item())
 
 
 def check_arrays(arrays: dict[str, np.ndarray], doc: dict[str, Any], where: str) -> None:

@@ -20,12 +20,14 @@ from ..avoidance import (
 )
 from .building import (
     MAX_FRAMES,
+    frame_blocks,
     arrived_mask,
     event_marks,
     goal_shapes,
     outcome_subtitle,
-    replay_steps,
+    replay_frames,
     speed_field,
+    steps_per_frame,
     stride_note,
     trace_events,
     workspace_shapes,
@@ -33,42 +35,45 @@ from .building import (
 from .scene import Field, Layer, Scene, Shape, View, legend_entry
 
 
-def cell_layer(trace: Trace, steps: np.ndarray, arrived: np.ndarray) -> Layer | None:
+def cell_layer(trace: Trace, rows: np.ndarray, arrived: np.ndarray) -> Layer | None:
     """The cells of the robots not yet arrived at each frame (none when not recorded)."""
     if "cell_A" not in trace.arrays or "cell_b" not in trace.arrays or not len(trace.arrays["cell_A"]):
         return None
     A, b = trace.arrays["cell_A"], trace.arrays["cell_b"]
-    rows = np.minimum(steps, len(A) - 1)
+    rows = np.minimum(rows, len(A) - 1)
     frame, robot = np.nonzero(~arrived)
     counts, vertices = cell_polygons(A[rows[frame], robot], b[rows[frame], robot], clip_region(trace))
     drawn = counts > 0
-    per_frame = np.bincount(frame[drawn], minlength=len(steps))
+    per_frame = np.bincount(frame[drawn], minlength=len(rows))
     return Layer("polygons", "cells", {
         "offsets": np.concatenate([[0], np.cumsum(per_frame)]), "polygon": np.concatenate([[0], np.cumsum(counts[drawn])]),
         "vertices": vertices, "robot": robot[drawn]}, {"fill": "robot", "alpha": 0.15, "stroke": "robot", "width": 0.8})
 
 
-def ellipse_layer(trace: Trace, steps: np.ndarray) -> Layer | None:
+def ellipse_layer(trace: Trace, rows: np.ndarray) -> Layer | None:
     """3σ ellipses of the position estimates (2-D runs whose ``robot_cov`` is known)."""
     cov, estimates = trace.metadata.get("robot_cov"), trace.arrays.get("estimates")
     if cov is None or estimates is None or not len(estimates) or is_three_d(trace):
         return None
     width, height, angle = uncertainty_ellipse(cov, 3.0)
-    centres = estimates[np.minimum(steps, len(estimates) - 1), :, :2]
-    F, N = centres.shape[:2]
+    F, N = len(rows), estimates.shape[1]
+    centres = np.empty((F, N, 2), np.float32)  # as embedded
+    for block in frame_blocks(F):
+        centres[block] = estimates[np.minimum(rows[block], len(estimates) - 1), :, :2]
     return Layer("ellipses", "uncertainty (3σ)", {
         "offsets": np.arange(F + 1) * N, "xy": centres.reshape(-1, 2),
-        "shape": np.tile([width, height, np.radians(angle)], (F * N, 1)), "robot": np.tile(np.arange(N), F)},
+        "shape": np.tile(np.array([width, height, np.radians(angle)], np.float32), (F * N, 1)),
+        "robot": np.tile(np.arange(N, dtype=np.int32), F)},
         {"stroke": "robot", "width": 1, "dash": [4, 3]})
 
 
-def heading_layer(trace: Trace, steps: np.ndarray, view: int = 0) -> Layer | None:
+def heading_layer(trace: Trace, rows: np.ndarray, view: int = 0) -> Layer | None:
     """A short line along each robot's heading (when recorded)."""
     headings = trace.arrays.get("headings")
     if headings is None:
         return None
-    h = headings[steps]
-    xy = trace.positions[steps, :, :2]
+    h = headings[rows]
+    xy = trace.positions[rows, :, :2]
     length = 1.8 * float(trace.metadata["radius"])
     tips = xy + length * np.stack([np.cos(h), np.sin(h)], axis=-1)
     finite = np.isfinite(h)
@@ -107,18 +112,22 @@ def replay_shapes(trace: Trace, views: list[View]) -> list[Shape]:
     return shapes
 
 
-def replay_fields(trace: Trace, steps: np.ndarray, times: np.ndarray) -> list[Field]:
-    """Hover values: speed, heading, estimate error, whether the estimate lies in the cell."""
-    fields = [speed_field(trace.positions[steps], times, "m/s")]
+def replay_fields(trace: Trace, rows: np.ndarray, times: np.ndarray, positions: np.ndarray | None = None) -> list[Field]:
+    """Hover values: speed, heading, estimate error, whether the estimate lies in the cell
+    (``positions``: the frames' positions, if already taken)."""
+    positions = trace.positions[rows] if positions is None else positions
+    fields = [speed_field(positions, times, "m/s")]
     if "headings" in trace.arrays:
-        fields.append(Field("heading", trace.arrays["headings"][steps], "rad"))
+        fields.append(Field("heading", trace.arrays["headings"][rows], "rad"))
     estimates = trace.arrays.get("estimates")
     if estimates is not None and len(estimates):
-        error = np.linalg.norm(estimates[np.minimum(steps, len(estimates) - 1)] - trace.positions[steps], axis=-1)
+        error = np.empty(positions.shape[:2], np.float32)
+        for block in frame_blocks(len(rows)):
+            error[block] = np.linalg.norm(estimates[np.minimum(rows[block], len(estimates) - 1)] - positions[block], axis=-1)
         fields.append(Field("estimate error", error, "m"))
     inside = trace.arrays.get("estimate_in_cell")
     if inside is not None and len(inside):
-        fields.append(Field("estimate in its cell", inside[np.minimum(steps, len(inside) - 1)].astype(float), labels=("no", "yes")))
+        fields.append(Field("estimate in its cell", inside[np.minimum(rows, len(inside) - 1)].astype(float), labels=("no", "yes")))
     return fields
 
 
@@ -129,23 +138,24 @@ def replay_scene(trace: Trace, max_frames: int = MAX_FRAMES) -> Scene:
     """The replay of an avoidance run: robots (true discs), trails, goals, obstacles,
     B-UAVC cells of the robots not yet arrived, 3σ ellipses of the estimates, headings and
     deadlock events; 3-D runs as a top and a side view."""
-    n_states, n = trace.positions.shape[:2]
-    steps = replay_steps(n_states, n, max_frames)
+    n_states = len(trace.positions)
+    rows, steps = replay_frames(trace, max_frames)
     dt = float(trace.metadata["dt"])
     times = steps * dt
     arrived = arrived_mask(trace, steps)
     views = replay_views(trace)
     events = trace_events(trace, steps, AVOIDANCE_EVENTS)
-    layers = [la for la in (cell_layer(trace, steps, arrived), ellipse_layer(trace, steps), heading_layer(trace, steps)) if la is not None]
-    stride = max(1.0, n_states / len(steps))
-    offsets, xy, robots = event_marks(events, trace.positions[steps], ("deadlock",), hold=max(1, round(1.0 / dt / stride)))
+    layers = [la for la in (cell_layer(trace, rows, arrived), ellipse_layer(trace, rows), heading_layer(trace, rows)) if la is not None]
+    stride = steps_per_frame(steps)
+    positions = trace.positions[rows]
+    offsets, xy, robots = event_marks(events, positions, ("deadlock",), hold=max(1, round(1.0 / dt / stride)))
     layers.append(Layer("marks", "deadlock events", {"offsets": offsets, "xy": xy, "robot": robots},
                         {"marker": "ring", "stroke": "#d62728", "size": 14, "width": 2}))
     scene = Scene("avoidance", run_title(trace), outcome_subtitle(trace, ("success", "collisions", "obstacle_collisions", "makespan")),
-                  steps, times, trace.positions[steps], views, radius=float(trace.metadata["radius"]),
+                  steps, times, positions, views, radius=float(trace.metadata["radius"]),
                   status=arrived.astype(np.uint8), statuses=[{"name": "moving"}, {"name": "arrived", "alpha": 0.45}],
-                  fields=replay_fields(trace, steps, times), shapes=replay_shapes(trace, views), layers=layers,
-                  events=events, trail=int(np.ceil(TRAIL_STEPS / stride)), notes=stride_note(steps, n_states))
+                  fields=replay_fields(trace, rows, times, positions), shapes=replay_shapes(trace, views), layers=layers,
+                  events=events, trail=int(np.ceil(TRAIL_STEPS / stride)), notes=stride_note(rows, n_states, trace.record_every))
     scene.solids = list(trace.metadata.get("boxes") or []) if is_three_d(trace) else []
     scene.legend = replay_legend(scene)
     return scene

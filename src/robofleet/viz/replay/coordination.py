@@ -13,7 +13,7 @@ from .building import (
     arrived_mask,
     goal_shapes,
     outcome_subtitle,
-    replay_steps,
+    replay_frames,
     speed_field,
     stride_note,
     trace_events,
@@ -34,32 +34,34 @@ STATUS_NAMES = ("moving", "waiting", "finished", "deadlocked")
 STATUS_COLORS = ("#1f77b4", "#ff7f0e", "#2ca02c", "#d62728")
 
 
-def replay_status(trace: Trace, steps: np.ndarray) -> np.ndarray:
-    """``(F, N)`` index into :data:`STATUS_NAMES`: finished (arrived), deadlocked (from the
-    deadlock event on), waiting (the recorded decision), else moving."""
+def replay_status(trace: Trace, steps: np.ndarray, rows: np.ndarray | None = None) -> np.ndarray:
+    """``(F, N)`` index into :data:`STATUS_NAMES` of the frames at simulation ``steps``
+    (kept ``rows``; by default ``steps`` over ``record_every``): finished (arrived),
+    deadlocked (from the deadlock event on), waiting (the recorded decision), else moving."""
+    rows = steps // trace.record_every if rows is None else rows
     n = trace.positions.shape[1]
     waiting = trace.arrays.get("waiting", np.zeros((len(trace.positions), n, 1), bool))[..., 0]
-    status = np.where(waiting[np.minimum(steps, len(waiting) - 1)], 1, 0).astype(np.uint8)
+    status = np.where(waiting[np.minimum(rows, len(waiting) - 1)], 1, 0).astype(np.uint8)
     status[arrived_mask(trace, steps)] = 2
-    for e in trace.events:
-        if e.get("kind") == "deadlock":
-            robots = [r for r in e.get("robots", [e.get("robot")]) if isinstance(r, (int, np.integer))]
-            rows = steps >= int(e.get("step", 0))
-            status[np.ix_(rows, robots)] = 3
+    deadlocks = trace.events.take(trace.events.kind_mask("deadlock"))
+    for i in range(len(deadlocks)):  # one event per deadlock of the run: few
+        e = deadlocks[i]
+        robots = [r for r in e.get("robots", [e.get("robot")]) if isinstance(r, int) and not isinstance(r, bool)]
+        status[np.ix_(steps >= e["step"], robots)] = 3
     return status
 
 
-def waits_for(trace: Trace, steps: np.ndarray, status: np.ndarray) -> list[list[tuple[int, int]]]:
+def waits_for(trace: Trace, rows: np.ndarray, status: np.ndarray) -> list[list[tuple[int, int]]]:
     """Per frame, the pairs ``(i, j)``: robot ``i`` waits and its next planned position lies
     within two radii of the part of robot ``j``'s plan that ``j`` has not yet passed (``j``
     still has to cross where ``i`` wants to go). Derived from the plan and the progress."""
     plan, progress = trace.arrays.get("plan"), trace.arrays.get("progress")
-    pairs: list[list[tuple[int, int]]] = [[] for _ in steps]
+    pairs: list[list[tuple[int, int]]] = [[] for _ in rows]
     if plan is None or progress is None:
         return pairs
     reach = 2.0 * float(trace.metadata["radius"])
     last = plan.shape[0] - 1
-    x = progress[np.minimum(steps, len(progress) - 1), :, 0]
+    x = progress[np.minimum(rows, len(progress) - 1), :, 0]
     cache: dict[tuple[int, int], np.ndarray] = {}
     for f, i in zip(*np.nonzero(status == 1)):
         target = int(min(x[f, i] + 1, last))
@@ -82,22 +84,23 @@ def relation_layer(pairs: list[list[tuple[int, int]]], coords: np.ndarray, group
 def flip_pairs(trace: Trace, steps: np.ndarray, hold: int) -> list[list[tuple[int, int]]]:
     """Per frame, the flips (robot, other) of the last ``hold`` frames."""
     pairs: list[list[tuple[int, int]]] = [[] for _ in steps]
-    for e in trace.events:
-        if e.get("kind") == "flip" and "other" in e:
-            frame = int(frames_of_steps(np.array([int(e["step"])]), steps)[0])
-            for f in range(frame, min(len(steps), frame + hold)):
-                pairs[f].append((int(e["robot"]), int(e["other"])))
+    events = trace.events
+    flips = events.kind_mask("flip") & (events.column("other", -1) >= 0) if "other" in events.columns else np.zeros(len(events), bool)
+    frames = frames_of_steps(events.steps[flips], steps)
+    for frame, robot, other in zip(frames.tolist(), events.column("robot", -1)[flips].tolist(), events.column("other", -1)[flips].tolist()):
+        for f in range(frame, min(len(steps), frame + hold)):
+            pairs[f].append((int(robot), int(other)))
     return pairs
 
 
-def disturbance_layer(trace: Trace, steps: np.ndarray) -> Layer | None:
+def disturbance_layer(trace: Trace, rows: np.ndarray) -> Layer | None:
     """Rings around the robots a disturbance stopped at each frame's step."""
     disturbed = trace.arrays.get("disturbed")
     if disturbed is None or not len(disturbed):
         return None
-    hit = disturbed[np.minimum(steps, len(disturbed) - 1), :, 0]
+    hit = disturbed[np.minimum(rows, len(disturbed) - 1), :, 0]
     frame, robot = np.nonzero(hit)
-    xy = trace.positions[steps][frame, robot]
+    xy = trace.positions[rows][frame, robot]
     return Layer("marks", "disturbance", {"offsets": np.concatenate([[0], np.cumsum(hit.sum(axis=1))]), "xy": xy, "robot": robot},
                  {"marker": "ring", "stroke": "#8b0000", "size": 10, "width": 1.5})
 
@@ -109,11 +112,11 @@ def replay_scene(trace: Trace, max_frames: int = MAX_FRAMES) -> Scene:
     """The replay of a coordination run: the map with the disturbance regions, planned
     paths, robots coloured by state (moving, waiting, finished, deadlocked), arrows from
     each waiting robot to the robots it waits for, flips and the disturbed robots."""
-    n_states, n = trace.positions.shape[:2]
-    steps = replay_steps(n_states, n, max_frames)
+    n_states = len(trace.positions)
+    rows, steps = replay_frames(trace, max_frames)
     times = steps * float(trace.metadata.get("dt", 1.0))
-    coords = trace.positions[steps]
-    status = replay_status(trace, steps)
+    coords = trace.positions[rows]
+    status = replay_status(trace, steps, rows)
     shapes = workspace_shapes(trace.workspace)
     plan = trace.arrays.get("plan")
     if plan is not None:
@@ -121,19 +124,19 @@ def replay_scene(trace: Trace, max_frames: int = MAX_FRAMES) -> Scene:
                    for i in range(plan.shape[1])]
     shapes += goal_shapes(np.asarray(trace.metadata.get("goals", coords[-1]), float))
     hold = max(1, len(steps) // 60)
-    layers = [relation_layer(waits_for(trace, steps, status), coords, "waits for", {"stroke": "#ff7f0e", "width": 1.5, "arrow": True}),
+    layers = [relation_layer(waits_for(trace, rows, status), coords, "waits for", {"stroke": "#ff7f0e", "width": 1.5, "arrow": True}),
               relation_layer(flip_pairs(trace, steps, hold), coords, "flips", {"stroke": "#9467bd", "width": 3, "arrow": True, "alpha": 0.8})]
-    layers += [la for la in (disturbance_layer(trace, steps),) if la is not None]
+    layers += [la for la in (disturbance_layer(trace, rows),) if la is not None]
     progress = trace.arrays.get("progress")
     fields = [speed_field(coords, times, "units/s")]
     if progress is not None:
-        fields.append(Field("plan step reached", progress[np.minimum(steps, len(progress) - 1), :, 0].astype(float), digits=0))
+        fields.append(Field("plan step reached", progress[np.minimum(rows, len(progress) - 1), :, 0].astype(float), digits=0))
     scene = Scene("coordination", run_title(trace), outcome_subtitle(trace, ("success", "deadlock", "flips", "mean_travel_time")),
                   steps, times, coords, [View("map (x, y)", (0, 1), ("x [map units]", "y [map units]"), *_map_extent(trace))],
                   radius=float(trace.metadata["radius"]), length_unit="map units",
                   status=status, statuses=[{"name": s, "color": c} for s, c in zip(STATUS_NAMES, STATUS_COLORS)],
                   fields=fields, shapes=shapes, layers=layers, events=trace_events(trace, steps, COORDINATION_EVENTS),
-                  trail=0, notes=stride_note(steps, n_states))
+                  trail=0, notes=stride_note(rows, n_states, trace.record_every))
     present = set(scene.groups())
     scene.legend = [legend_entry(f"robot {s}", color=c, marker="circle") for s, c in zip(STATUS_NAMES, STATUS_COLORS)
                     if (status == STATUS_NAMES.index(s)).any()]

@@ -11,7 +11,7 @@ from ..animation import run_title
 from .building import (
     MAX_FRAMES,
     outcome_subtitle,
-    replay_steps,
+    replay_frames,
     speed_field,
     stride_note,
 )
@@ -41,15 +41,19 @@ def cycle_items(trace: Trace, times: np.ndarray) -> tuple[list[list], list[list]
     and the Look of every cycle that looked since the previous frame."""
     moves: list[list] = [[] for _ in times]
     looks: list[list] = [[] for _ in times]
-    for e in trace.events:
-        if e.get("kind") != "cycle":
-            continue
-        t_look, t_end = float(e["t_look"]), float(e["t_end"])
-        first, last = np.searchsorted(times, t_look, side="left"), np.searchsorted(times, t_end, side="left")
+    events = trace.events
+    cycles = events.take(events.kind_mask("cycle"))
+    if not len(cycles):
+        return moves, looks
+    starts, destinations = cycles.columns["start"], cycles.columns["destination"]
+    firsts = np.searchsorted(times, cycles.column("t_look", np.nan), side="left")
+    lasts = np.searchsorted(times, cycles.column("t_end", np.nan), side="left")
+    for i, (first, last, robot) in enumerate(zip(firsts.tolist(), lasts.tolist(), cycles.column("robot", -1).tolist())):
+        start = starts.value(i)
         for f in range(first, min(last, len(times))):
-            moves[f].append((*e["start"], *e["destination"], int(e["robot"])))
+            moves[f].append((*start, *destinations.value(i), robot))
         if first < len(times):
-            looks[first].append((*e["start"], int(e["robot"])))
+            looks[first].append((*start, robot))
     return moves, looks
 
 
@@ -65,10 +69,10 @@ def replay_scene(trace: Trace, max_frames: int = MAX_FRAMES) -> Scene:
     and Move (line to its destination), and a second view in the leader's frame with
     the pattern."""
     n_states, n = trace.positions.shape[:2]
-    steps = replay_steps(n_states, n, max_frames)
-    times = np.asarray(trace.arrays["time"], float)[steps]
-    pos = trace.positions[steps]
-    heading = np.asarray(trace.arrays["leader_heading"], float)[steps]
+    rows, steps = replay_frames(trace, max_frames)
+    times = np.asarray(trace.arrays["time"], float)[rows]
+    pos = trace.positions[rows]
+    heading = np.asarray(trace.arrays["leader_heading"], float)[rows]
     leader = int(trace.metadata.get("leader_index", 0))
     local = leader_frame(pos, heading, leader)
     pattern = np.asarray(trace.metadata.get("pattern", []), float).reshape(-1, 2)
@@ -78,7 +82,7 @@ def replay_scene(trace: Trace, max_frames: int = MAX_FRAMES) -> Scene:
     views = [View("plane (x, y)", (0, 1), ("x [units]", "y [units]"), lo, hi),
              View("leader's frame (x along its heading)", (0, 1), ("forward [units]", "left [units]"), span.min(axis=0) - pad,
                   span.max(axis=0) + pad, source="leader_frame")]
-    targets = np.asarray(trace.arrays["estimated_target"], float)[steps]
+    targets = np.asarray(trace.arrays["estimated_target"], float)[rows]
     moves, looks = cycle_items(trace, times)
     layers = [Layer("marks", "estimated target (slots)", {"offsets": np.arange(len(steps) + 1) * targets.shape[1],
                                                           "xy": targets.reshape(-1, 2), "robot": np.full(targets.shape[0] * targets.shape[1], -1)},
@@ -92,8 +96,8 @@ def replay_scene(trace: Trace, max_frames: int = MAX_FRAMES) -> Scene:
     headings = np.full((len(steps), n), np.nan)
     headings[:, leader] = heading
     fields = [speed_field(pos, times, "units per time unit"), Field("heading", headings, "rad"),
-              Field("Δe (team)", np.asarray(trace.arrays["delta_e"], float)[steps], "units"),
-              Field("Δr (team)", np.asarray(trace.arrays["delta_r"], float)[steps], "units")]
+              Field("Δe (team)", np.asarray(trace.arrays["delta_e"], float)[rows], "units"),
+              Field("Δr (team)", np.asarray(trace.arrays["delta_r"], float)[rows], "units")]
     r = trace.results
     subtitle = outcome_subtitle(trace, ("success",)) + (f" · Δe={r['delta_e_final']:.2f}, Δr={r['delta_r_final']:.2f}, ξ={r['xi']:.2f}"
                                                         if {"delta_e_final", "delta_r_final", "xi"} <= set(r) else "")
@@ -101,7 +105,8 @@ def replay_scene(trace: Trace, max_frames: int = MAX_FRAMES) -> Scene:
                   time_unit="time units", length_unit="units", palette=palette, robot_colors=colors,
                   robot_names=["leader" if i == leader else f"follower {i}" for i in range(n)],
                   robot_markers=["triangle" if i == leader else "circle" for i in range(n)], fields=fields,
-                  coordinates={"leader_frame": local}, shapes=shapes, layers=layers, trail=60, notes=stride_note(steps, n_states))
+                  coordinates={"leader_frame": local}, shapes=shapes, layers=layers, trail=60,
+                  notes=stride_note(rows, n_states, trace.record_every))
     present = set(scene.groups())
     scene.legend = [legend_entry("leader (along its heading)", color=LEADER_COLOR, marker="triangle"),
                     legend_entry("follower (one colour each)", color=palette[0], marker="circle")]

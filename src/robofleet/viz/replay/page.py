@@ -20,12 +20,13 @@ import json
 import os
 import re
 import sys
+from collections.abc import Iterable, Iterator
 from importlib import resources
 from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
 
 from ...core.errors import ConfigError
-from ...core.files import write_text
+from ...core.files import replacing
 from .scene import Scene
 
 PLACEHOLDERS = re.compile(r"__(VERSION|TITLE|CSS|JS|DATA)__")
@@ -44,8 +45,17 @@ def asset(name: str) -> str:
 def scene_json(scene: Scene) -> str:
     """The scene as JSON safe to embed in a ``<script>`` element: ``<`` only occurs inside
     JSON strings, where ``\\u003c`` stands for it, so no ``</script>`` or ``<!--`` remains."""
-    text = json.dumps(scene.to_document(), separators=(",", ":"), allow_nan=False)
-    return text.replace("<", "\\u003c")
+    return "".join(scene_json_pieces(scene))
+
+
+def scene_json_pieces(scene: Scene) -> Iterator[str]:
+    """:func:`scene_json` in pieces (one per top-level entry of the document), for writing
+    without holding the whole text."""
+    doc = scene.to_document()
+    for index, (key, value) in enumerate(doc.items()):
+        text = json.dumps({key: value}, separators=(",", ":"), allow_nan=False)[1:-1]
+        yield ("{" if index == 0 else ",") + text.replace("<", "\\u003c")
+    yield "}" if doc else "{}"
 
 
 def robofleet_version() -> str:
@@ -64,9 +74,24 @@ def fill_template(template: str, parts: dict[str, str]) -> str:
 
 def replay_html(scene: Scene) -> str:
     """The complete page of ``scene``."""
+    return "".join(replay_html_pieces(scene))
+
+
+def replay_html_pieces(scene: Scene) -> Iterator[str]:
+    """The page of ``scene`` in pieces: the template's text and each placeholder's filling,
+    in one pass over the template (as :func:`fill_template`), the data piece by piece."""
     parts = {"__VERSION__": html.escape(robofleet_version()), "__TITLE__": html.escape(scene.title), "__CSS__": asset("replay.css"),
-             "__JS__": asset("replay.js"), "__DATA__": scene_json(scene)}
-    return fill_template(asset("template.html"), parts)
+             "__JS__": asset("replay.js")}
+    template = asset("template.html")
+    at = 0
+    for match in PLACEHOLDERS.finditer(template):
+        yield template[at:match.start()]
+        if match.group(0) == "__DATA__":
+            yield from scene_json_pieces(scene)
+        else:
+            yield parts[match.group(0)]
+        at = match.end()
+    yield template[at:]
 
 
 def write_html(scene: Scene, path: str | Path) -> Path:
@@ -77,16 +102,19 @@ def write_html(scene: Scene, path: str | Path) -> Path:
     ConfigError
         ``path`` cannot be written.
     """
-    return write_page(replay_html(scene), path)
+    return write_page(replay_html_pieces(scene), path)
 
 
-def write_page(text: str, path: str | Path) -> Path:
-    """Write one HTML page to ``path`` (parent folders created; the file replaced only once
-    complete, :func:`~robofleet.core.files.write_text`); return the path, or raise
+def write_page(text: str | Iterable[str], path: str | Path) -> Path:
+    """Write one HTML page (its text, or its pieces one after the other) to ``path``
+    (parent folders created; the file replaced only once complete,
+    :func:`~robofleet.core.files.replacing`); return the path, or raise
     :class:`ConfigError` naming it when it cannot be written."""
     path = Path(path)
     try:
-        write_text(path, text)
+        with replacing(path) as temp, open(temp, "w", encoding="utf-8") as handle:
+            for piece in [text] if isinstance(text, str) else text:
+                handle.write(piece)
     except OSError as exc:
         raise ConfigError(f"{path}: expected a writable file path, received one that cannot be written ({exc.strerror})") from None
     return path

@@ -15,10 +15,42 @@ async function decodeArray(enc) {
   const bytes = new Uint8Array(text.length);
   for (let i = 0; i < text.length; i++) bytes[i] = text.charCodeAt(i);
   const stream = new Blob([bytes]).stream().pipeThrough(new DecompressionStream("deflate"));
-  const buffer = await new Response(stream).arrayBuffer();
+  let buffer = await new Response(stream).arrayBuffer();
+  const width = TYPED[enc.dtype].BYTES_PER_ELEMENT;
+  if (enc.shuffle && width > 1) {  // bytes grouped by plane: value i's byte b is at b * n + i
+    const planes = new Uint8Array(buffer), out = new Uint8Array(planes.length), n = planes.length / width;
+    for (let b = 0; b < width; b++) {
+      const base = b * n;
+      for (let i = 0; i < n; i++) out[i * width + b] = planes[base + i];
+    }
+    buffer = out.buffer;
+  }
   const array = new TYPED[enc.dtype](buffer);
   array.shape = enc.shape;
   return array;
+}
+
+// Events are columns ordered by frame: frame, kind (into kinds), robot (-1: none), step,
+// text (into texts, -1: none).
+async function decodeEvents(doc) {
+  const ev = { kinds: doc.kinds, texts: doc.texts };
+  for (const k of ["frame", "kind", "robot", "step", "text"]) ev[k] = await decodeArray(doc[k]);
+  ev.length = ev.frame.length;
+  ev.counts = new Array(ev.kinds.length).fill(0);
+  for (let i = 0; i < ev.length; i++) ev.counts[ev.kind[i]]++;
+  return ev;
+}
+
+function eventsUpTo(ev, frame) {  // the number of events at frames <= frame
+  let lo = 0, hi = ev.length;
+  while (lo < hi) { const mid = (lo + hi) >> 1; if (ev.frame[mid] <= frame) lo = mid + 1; else hi = mid; }
+  return lo;
+}
+
+function eventText(ev, i, names) {
+  const robot = ev.robot[i], text = ev.text[i], step = ev.step[i];
+  const detail = [step >= 0 ? `step ${step}` : null, text >= 0 ? ev.texts[text] : null].filter((x) => x).join(", ");
+  return `${ev.kinds[ev.kind[i]]}${robot >= 0 ? " · " + names[robot] : ""}${detail ? " · " + detail : ""}`;
 }
 
 async function decodeScene(doc) {
@@ -32,6 +64,7 @@ async function decodeScene(doc) {
   for (const [k, v] of Object.entries(doc.coordinates)) s.coordinates[k] = await decodeArray(v);
   s.fields = [];
   for (const f of doc.fields) s.fields.push(Object.assign({}, f, { values: await decodeArray(f.values) }));
+  s.events = await decodeEvents(doc.events);
   s.layers = [];
   for (const layer of doc.layers) {
     const arrays = {};
@@ -82,7 +115,7 @@ class Replay {
     this.selected = -1;
     this.hidden = new Set(scene.hidden || []);
     if (this.N > TRAIL_ROBOT_LIMIT) this.hidden.add("trails");
-    this.eventKinds = [...new Set(scene.events.map((e) => e.kind))];
+    this.eventKinds = scene.events.kinds;
     this.views = [];
     this.dirty = true;
     this.drawCount = 0;
@@ -577,31 +610,34 @@ class Replay {
         : formatNumber(value, fd.digits) + (fd.unit ? " " + fd.unit : "");
       add(fd.name, shown);
     }
-    const last = s.events.filter((e) => e.robot === i && e.frame <= f).slice(-1)[0];
-    if (last) add("last event", `${last.kind} at t = ${formatNumber(s.times[last.frame])} ${s.time_unit} (${last.text})`);
+    const ev = s.events;
+    let last = eventsUpTo(ev, f) - 1;
+    while (last >= 0 && ev.robot[last] !== i) last--;
+    if (last >= 0) {
+      const detail = [`step ${ev.step[last]}`, ev.text[last] >= 0 ? ev.texts[ev.text[last]] : null].filter((x) => x).join(", ");
+      add("last event", `${ev.kinds[ev.kind[last]]} at t = ${formatNumber(s.times[ev.frame[last]])} ${s.time_unit} (${detail})`);
+    }
     box.appendChild(table);
   }
 
   showEvents() {
     const box = document.getElementById("events");
-    const events = this.s.events;
-    if (!events.length) { box.innerHTML = '<p class="hint">No events recorded.</p>'; return; }
-    let upto = 0;
-    while (upto < events.length && events[upto].frame <= this.frame) upto++;
-    const shown = events.slice(Math.max(0, upto - 6), Math.min(events.length, upto + 2));
-    const key = shown.map((e) => e.frame + e.kind + e.robot).join(",") + "|" + upto;
+    const ev = this.s.events;
+    if (!ev.length) { box.innerHTML = '<p class="hint">No events recorded.</p>'; return; }
+    const upto = eventsUpTo(ev, this.frame);
+    const from = Math.max(0, upto - 6), to = Math.min(ev.length, upto + 2);
+    const key = `${from}-${to}|${upto}|${this.frame}`;
     if (key === this.eventsKey) return;
     this.eventsKey = key;
     box.innerHTML = "";
-    const counts = {};
-    for (const e of events) counts[e.kind] = (counts[e.kind] || 0) + 1;
-    box.appendChild(el("p", { class: "hint" }, Object.entries(counts).map(([k, n]) => `${k}: ${n}`).join(" · ")));
-    for (const e of shown) {
-      const line = el("div", { class: "event" + (e.frame === this.frame ? " current" : "") },
-        `t = ${formatNumber(this.s.times[e.frame])} ${this.s.time_unit}: ${e.kind}${e.robot >= 0 ? " · " + this.s.robot_names[e.robot] : ""}${e.text ? " · " + e.text : ""}`);
-      line.style.borderLeft = `4px solid ${eventColor(e.kind, this.eventKinds)}`;
-      if (e.frame > this.frame) line.style.opacity = "0.5";
-      line.addEventListener("click", () => { this.pause(); this.setFrame(e.frame); if (e.robot >= 0) { this.selected = e.robot; this.showInspector(); } });
+    box.appendChild(el("p", { class: "hint" }, ev.kinds.map((k, j) => `${k}: ${ev.counts[j]}`).join(" · ")));
+    for (let i = from; i < to; i++) {
+      const frame = ev.frame[i], kind = ev.kinds[ev.kind[i]], robot = ev.robot[i];
+      const line = el("div", { class: "event" + (frame === this.frame ? " current" : "") },
+        `t = ${formatNumber(this.s.times[frame])} ${this.s.time_unit}: ${eventText(ev, i, this.s.robot_names)}`);
+      line.style.borderLeft = `4px solid ${eventColor(kind, this.eventKinds)}`;
+      if (frame > this.frame) line.style.opacity = "0.5";
+      line.addEventListener("click", () => { this.pause(); this.setFrame(frame); if (robot >= 0) { this.selected = robot; this.showInspector(); } });
       box.appendChild(line);
     }
   }
@@ -613,11 +649,10 @@ class Replay {
     const ctx = c.getContext("2d");
     ctx.setTransform(dpr, 0, 0, dpr, 0, 0);
     ctx.clearRect(0, 0, r.width, 10);
-    const events = this.s.events, stride = Math.max(1, Math.floor(events.length / 3000));
-    for (let k = 0; k < events.length; k += stride) {
-      const e = events[k];
-      ctx.fillStyle = eventColor(e.kind, this.eventKinds);
-      ctx.fillRect(((r.width - 2) * e.frame) / Math.max(1, this.F - 1), 0, 2, 10);
+    const ev = this.s.events, stride = Math.max(1, Math.floor(ev.length / 3000));
+    for (let k = 0; k < ev.length; k += stride) {
+      ctx.fillStyle = eventColor(ev.kinds[ev.kind[k]], this.eventKinds);
+      ctx.fillRect(((r.width - 2) * ev.frame[k]) / Math.max(1, this.F - 1), 0, 2, 10);
     }
   }
 

@@ -6,6 +6,10 @@ frame): ``world/robots`` (3-D points for 3-D runs, else 2-D), the static shapes 
 closed line strips, arrows, marks and revealed points), robots of a view with its own
 coordinates (the leader's frame) under ``<view>/robots``, the events as a text log under
 ``world/events``, and the 3-D obstacle boxes (``scene.solids``) under ``world/obstacles``.
+
+Large scenes are sent in blocks of frames holding at most :data:`ITEMS_PER_BLOCK` items
+(robots, cells, ellipses …) and :data:`EVENTS_PER_CHUNK` events at a time, so what is
+built for the recording at once stays bounded whatever the number of robots and frames.
 """
 
 from __future__ import annotations
@@ -50,14 +54,40 @@ def rgba(colour: str, alpha: float = 1.0) -> np.ndarray:
     return np.array([int(value[k:k + 2], 16) for k in (0, 2, 4)] + [round(255 * alpha)], np.uint8)
 
 
-def robot_colours(scene: Scene) -> np.ndarray:
-    """``(F, N, 4)`` fill colour of every robot at every frame."""
+ITEMS_PER_BLOCK = 1_000_000
+"""Points (robot positions, marks, the corners of ellipses and cells) sent to the recording
+in one call at most."""
+ELLIPSE_SIDES = 24
+"""Sides of the polygon an ellipse is drawn as."""
+POLYGON_POINTS = 12
+"""Points a cell is counted as when sizing the blocks of a ``polygons`` layer."""
+
+
+def frame_blocks(counts: np.ndarray, limit: int | None = None) -> list[tuple[int, int]]:
+    """Consecutive frame ranges ``[start, stop)`` whose items (``counts`` per frame) add up
+    to at most ``limit`` (default :data:`ITEMS_PER_BLOCK`; one frame alone may have more)."""
+    limit = ITEMS_PER_BLOCK if limit is None else limit
+    blocks, start, total = [], 0, 0
+    for frame, count in enumerate(np.asarray(counts, np.int64).tolist()):
+        if frame > start and total + count > limit:
+            blocks.append((start, frame))
+            start, total = frame, 0
+        total += count
+    if start < len(counts):
+        blocks.append((start, len(counts)))
+    return blocks
+
+
+def robot_colours(scene: Scene, start: int = 0, stop: int | None = None) -> np.ndarray:
+    """``(F, N, 4)`` fill colour of every robot at frames ``start`` to ``stop`` (all by default)."""
+    stop = scene.n_frames if stop is None else stop
     palette = np.stack([rgba(c) for c in scene.palette])
-    colours = np.broadcast_to(palette[scene.robot_color_index()], (scene.n_frames, scene.n_robots, 4)).copy()
+    colours = np.broadcast_to(palette[scene.robot_color_index()], (stop - start, scene.n_robots, 4)).copy()
     if scene.status is not None:
-        for k, status in enumerate(scene.statuses):
-            if status.get("color"):
-                colours[scene.status == k] = rgba(status["color"])
+        status = scene.status[start:stop]
+        for k, entry in enumerate(scene.statuses):
+            if entry.get("color"):
+                colours[status == k] = rgba(entry["color"])
     return colours
 
 
@@ -90,7 +120,7 @@ def write_rrd(scene: Scene, path: str | Path) -> Path:
 
 def log_scene(rr: Any, rec: Any, scene: Scene) -> None:
     """Log every layer of ``scene`` to the recording ``rec``."""
-    times = rr.TimeColumn(TIME_AXIS, duration=np.asarray(scene.times, float))
+    times = np.asarray(scene.times, float)
     rec.log("world", rr.TextDocument(f"{scene.title}\n\n{scene.subtitle}"), static=True)
     log_robots(rr, rec, scene, times)
     for index, shape in enumerate(scene.shapes):
@@ -122,21 +152,28 @@ def view_root(scene: Scene, view: int) -> str:
     return entity_name(scene.views[view].name.split("(")[0])
 
 
-def log_robots(rr: Any, rec: Any, scene: Scene, times: Any) -> None:
+def time_column(rr: Any, times: np.ndarray, start: int, stop: int) -> Any:
+    """The time axis of frames ``start`` to ``stop``."""
+    return rr.TimeColumn(TIME_AXIS, duration=times[start:stop])
+
+
+def log_robots(rr: Any, rec: Any, scene: Scene, times: np.ndarray) -> None:
     F, N, D = scene.positions.shape
     names = scene.robot_names or [f"robot {i}" for i in range(N)]
     radius = scene.radius if scene.radius > 0 else 1.0
-    colours = robot_colours(scene).reshape(-1, 4)
     archetype = rr.Points3D if D == 3 else rr.Points2D
     rec.log("world/robots", archetype.from_fields(labels=names, radii=np.full(N, radius, np.float32)), static=True)
-    columns = archetype.columns(positions=scene.positions.reshape(-1, D), colors=colours)
-    rec.send_columns("world/robots", indexes=[times], columns=columns.partition(np.full(F, N)))
-    for v, view in enumerate(scene.views):
-        if view.source != "positions" and view.source in scene.coordinates:
-            root = view_root(scene, v)
-            rec.log(f"{root}/robots", rr.Points2D.from_fields(labels=names, radii=np.full(N, radius, np.float32)), static=True)
-            xy = scene.coordinates[view.source][..., list(view.axes)].reshape(-1, 2)
-            rec.send_columns(f"{root}/robots", indexes=[times], columns=rr.Points2D.columns(positions=xy, colors=colours).partition(np.full(F, N)))
+    others = [(v, view) for v, view in enumerate(scene.views) if view.source != "positions" and view.source in scene.coordinates]
+    for v, _ in others:
+        rec.log(f"{view_root(scene, v)}/robots", rr.Points2D.from_fields(labels=names, radii=np.full(N, radius, np.float32)), static=True)
+    for start, stop in frame_blocks(np.full(F, N)):
+        colours = robot_colours(scene, start, stop).reshape(-1, 4)
+        columns = archetype.columns(positions=scene.positions[start:stop].reshape(-1, D), colors=colours)
+        rec.send_columns("world/robots", indexes=[time_column(rr, times, start, stop)], columns=columns.partition(np.full(stop - start, N)))
+        for v, view in others:
+            xy = scene.coordinates[view.source][start:stop][..., list(view.axes)].reshape(-1, 2)
+            rec.send_columns(f"{view_root(scene, v)}/robots", indexes=[time_column(rr, times, start, stop)],
+                             columns=rr.Points2D.columns(positions=xy, colors=colours).partition(np.full(stop - start, N)))
 
 
 def _in_world(scene: Scene, view: int, points: np.ndarray) -> np.ndarray:
@@ -175,58 +212,81 @@ def log_shape(rr: Any, rec: Any, scene: Scene, shape: Shape, index: int) -> None
         rec.log(f"{entity}/{index}", archetype(pts, colors=[colour], labels=labels), static=True)
 
 
-def log_layer(rr: Any, rec: Any, scene: Scene, layer: Layer, times: Any) -> None:
+def log_layer(rr: Any, rec: Any, scene: Scene, layer: Layer, times: np.ndarray) -> None:
+    """A per-frame layer, in blocks of frames (:func:`frame_blocks`)."""
     entity = f"{view_root(scene, layer.view)}/{entity_name(layer.group)}"
     a, F = layer.arrays, scene.n_frames
-    robots = a.get("robot")
     if layer.kind == "reveal":
-        visible = [(a["frame"] >= 0) & (a["frame"] <= f) for f in range(F)]
-        pts = np.concatenate([_in_world(scene, layer.view, a["xy"][m]) for m in visible])
-        archetype = rr.Points3D if pts.shape[1] == 3 else rr.Points2D
-        rec.send_columns(entity, indexes=[times], columns=archetype.columns(positions=pts).partition([int(m.sum()) for m in visible]))
+        first = np.where(a["frame"] >= 0, a["frame"], F)
+        shown = np.array([int((first <= f).sum()) for f in range(F)])
+        order = np.argsort(first, kind="stable")
+        for start, stop in frame_blocks(shown):
+            pts = np.concatenate([_in_world(scene, layer.view, a["xy"][order[:shown[f]]]) for f in range(start, stop)])
+            archetype = rr.Points3D if pts.shape[1] == 3 else rr.Points2D
+            rec.send_columns(entity, indexes=[time_column(rr, times, start, stop)],
+                             columns=archetype.columns(positions=pts).partition(shown[start:stop]))
         return
-    counts = np.diff(np.asarray(a["offsets"], np.int64))
-    frame_of_item = np.repeat(np.arange(F), counts)
-    colours = np.stack([_style_colour(scene, layer.style, "stroke", int(r)) for r in robots]) if robots is not None and len(robots) else None
+    offsets = np.asarray(a["offsets"], np.int64)
+    counts = np.diff(offsets)
+    points = ELLIPSE_SIDES + 1 if layer.kind == "ellipses" else POLYGON_POINTS if layer.kind == "polygons" else 1
+    for start, stop in frame_blocks(counts, ITEMS_PER_BLOCK // points):
+        lo, hi = int(offsets[start]), int(offsets[stop])
+        columns = layer_columns(rr, scene, layer, lo, hi, np.repeat(np.arange(start, stop), counts[start:stop]))
+        rec.send_columns(entity, indexes=[time_column(rr, times, start, stop)], columns=columns.partition(counts[start:stop]))
+
+
+def layer_columns(rr: Any, scene: Scene, layer: Layer, lo: int, hi: int, frame_of_item: np.ndarray) -> Any:
+    """The columns of the layer's items ``lo`` to ``hi`` (at frames ``frame_of_item``)."""
+    a = layer.arrays
+    robots = a["robot"][lo:hi] if a.get("robot") is not None else None
+    colours = item_colours(scene, layer.style, robots) if robots is not None and len(robots) else None
     lifted = scene.positions.shape[2] == 3 and robots is not None and layer.kind in ("segments", "marks")
     if lifted:  # a 3-D scene's projected marks and headings start at their robot's 3-D position
         anchor = scene.positions[frame_of_item, robots]
     if layer.kind == "segments" and lifted:
-        tips = np.concatenate([a["xy"][:, 2:] - a["xy"][:, :2], np.zeros((len(robots), 1))], axis=1)
-        columns = rr.Arrows3D.columns(origins=anchor, vectors=tips, colors=colours)
-    elif layer.kind == "marks" and lifted:
-        columns = rr.Points3D.columns(positions=anchor, colors=colours)
-    elif layer.kind == "segments":
-        start, end = _in_world(scene, layer.view, a["xy"][:, :2]), _in_world(scene, layer.view, a["xy"][:, 2:])
+        xy = a["xy"][lo:hi]
+        tips = np.concatenate([xy[:, 2:] - xy[:, :2], np.zeros((len(robots), 1))], axis=1)
+        return rr.Arrows3D.columns(origins=anchor, vectors=tips, colors=colours)
+    if layer.kind == "marks" and lifted:
+        return rr.Points3D.columns(positions=anchor, colors=colours)
+    if layer.kind == "segments":
+        xy = a["xy"][lo:hi]
+        start, end = _in_world(scene, layer.view, xy[:, :2]), _in_world(scene, layer.view, xy[:, 2:])
         archetype = rr.Arrows3D if start.shape[1] == 3 else rr.Arrows2D
-        columns = archetype.columns(origins=start, vectors=end - start, colors=colours)
-    elif layer.kind == "marks":
-        pts = _in_world(scene, layer.view, a["xy"])
+        return archetype.columns(origins=start, vectors=end - start, colors=colours)
+    if layer.kind == "marks":
+        pts = _in_world(scene, layer.view, a["xy"][lo:hi])
         archetype = rr.Points3D if pts.shape[1] == 3 else rr.Points2D
-        columns = archetype.columns(positions=pts, colors=colours)
-    else:
-        strips = polygon_strips(layer) if layer.kind == "polygons" else ellipse_strips(layer)
+        return archetype.columns(positions=pts, colors=colours)
+    strips = polygon_strips(layer, lo, hi) if layer.kind == "polygons" else ellipse_strips(layer, lo, hi)
+    three_d = scene.positions.shape[2] == 3
+    if three_d or layer.kind == "polygons":
         strips = [_in_world(scene, layer.view, s) for s in strips]
-        archetype = rr.LineStrips3D if strips and strips[0].shape[1] == 3 else rr.LineStrips2D
-        columns = archetype.columns(strips=strips, colors=colours)
-    rec.send_columns(entity, indexes=[times], columns=columns.partition(counts))
+    return (rr.LineStrips3D if three_d else rr.LineStrips2D).columns(strips=strips, colors=colours)
 
 
-def polygon_strips(layer: Layer) -> list[np.ndarray]:
-    """Closed outlines of a ``polygons`` layer, in its polygon order."""
+def item_colours(scene: Scene, style: dict, robots: np.ndarray) -> np.ndarray:
+    """``(k, 4)`` the stroke colour of items of ``robots`` (one colour per distinct robot computed)."""
+    unique, inverse = np.unique(robots, return_inverse=True)
+    return np.stack([_style_colour(scene, style, "stroke", int(r)) for r in unique])[inverse.reshape(-1)]
+
+
+def polygon_strips(layer: Layer, lo: int = 0, hi: int | None = None) -> list[np.ndarray]:
+    """Closed outlines of polygons ``lo`` to ``hi`` of a ``polygons`` layer, in its polygon order."""
     bounds, vertices = layer.arrays["polygon"], layer.arrays["vertices"]
-    return [np.vstack([vertices[s:e], vertices[s:s + 1]]) for s, e in itertools.pairwise(bounds)]
+    hi = len(bounds) - 1 if hi is None else hi
+    return [np.vstack([vertices[s:e], vertices[s:s + 1]]) for s, e in itertools.pairwise(bounds[lo:hi + 1])]
 
 
-def ellipse_strips(layer: Layer, sides: int = 24) -> list[np.ndarray]:
-    """Closed 24-gons of an ``ellipses`` layer."""
+def ellipse_strips(layer: Layer, lo: int = 0, hi: int | None = None, sides: int | None = None) -> np.ndarray:
+    """``(E, sides + 1, 2)``: closed polygons (24-gons by default) of ellipses ``lo`` to
+    ``hi`` of an ``ellipses`` layer, computed together."""
+    sides = ELLIPSE_SIDES if sides is None else sides
+    xy, shape = layer.arrays["xy"][lo:hi], layer.arrays["shape"][lo:hi]
     t = np.linspace(0.0, 2 * np.pi, sides + 1)
-    out = []
-    for (x, y), (w, h, angle) in zip(layer.arrays["xy"], layer.arrays["shape"]):
-        c, s = np.cos(angle), np.sin(angle)
-        u, v = 0.5 * w * np.cos(t), 0.5 * h * np.sin(t)
-        out.append(np.stack([x + c * u - s * v, y + s * u + c * v], axis=1))
-    return out
+    c, s = np.cos(shape[:, 2:3]), np.sin(shape[:, 2:3])
+    u, v = 0.5 * shape[:, 0:1] * np.cos(t), 0.5 * shape[:, 1:2] * np.sin(t)
+    return np.stack([xy[:, 0:1] + c * u - s * v, xy[:, 1:2] + s * u + c * v], axis=-1)
 
 
 def log_solids(rr: Any, rec: Any, scene: Scene) -> None:
@@ -239,10 +299,17 @@ def log_solids(rr: Any, rec: Any, scene: Scene) -> None:
                                                 colors=[rgba("#808080")], fill_mode="solid"), static=True)
 
 
+EVENTS_PER_CHUNK = 50_000
+"""Events logged per call (their texts made for one chunk at a time)."""
+
+
 def log_events(rr: Any, rec: Any, scene: Scene) -> None:
-    if not scene.events:
-        return
+    """The events as a text log at their frames' times, :data:`EVENTS_PER_CHUNK` at a time."""
+    events = scene.events
     names = scene.robot_names or [f"robot {i}" for i in range(scene.n_robots)]
-    texts = [f"{e.kind}" + (f" · {names[e.robot]}" if e.robot >= 0 else "") + (f" · {e.text}" if e.text else "") for e in scene.events]
-    times = rr.TimeColumn(TIME_AXIS, duration=[float(scene.times[e.frame]) for e in scene.events])
-    rec.send_columns("world/events", indexes=[times], columns=rr.TextLog.columns(text=texts))
+    times = np.asarray(scene.times, float)
+    for start in range(0, len(events), EVENTS_PER_CHUNK):
+        chunk = range(start, min(len(events), start + EVENTS_PER_CHUNK))
+        texts = [events.label(i, names) for i in chunk]
+        column = rr.TimeColumn(TIME_AXIS, duration=times[events.frame[chunk.start:chunk.stop]])
+        rec.send_columns("world/events", indexes=[column], columns=rr.TextLog.columns(text=texts))

@@ -111,7 +111,8 @@ class Layer:
 @dataclass
 class Field:
     """A value shown when a robot is hovered: ``values`` is ``(n_frames, n_robots)`` (per
-    robot) or ``(n_frames,)`` (the team's); ``labels`` names integer codes, if any."""
+    robot) or ``(n_frames,)`` (the team's), kept as float32 (what the page embeds);
+    ``labels`` names integer codes, if any."""
 
     name: str
     values: np.ndarray
@@ -119,15 +120,81 @@ class Field:
     labels: Sequence[str] | None = None
     digits: int = 3
 
+    def __post_init__(self) -> None:
+        self.values = np.asarray(self.values, np.float32)  # the precision the page shows
+
 
 @dataclass
 class Event:
-    """Something that happened at a frame (``robot = -1``: no single robot)."""
+    """Something that happened at a frame (``robot = -1``: no single robot; ``step``: the
+    simulation step it happened at, ``-1``: not known)."""
 
     frame: int
     kind: str
     robot: int = -1
     text: str = ""
+    step: int = -1
+
+
+@dataclass
+class SceneEvents:
+    """The events of a scene as columns, ordered by frame: ``frame``, ``kind`` (an index
+    into ``kinds``), ``robot`` (``-1``: none), ``step`` (the simulation step) and ``text``
+    (an index into ``texts``, ``-1``: none), all ``(E,)``. Iterating gives :class:`Event` s."""
+
+    frame: np.ndarray
+    kind: np.ndarray
+    robot: np.ndarray
+    step: np.ndarray
+    text: np.ndarray
+    kinds: tuple[str, ...] = ()
+    texts: tuple[str, ...] = ()
+
+    @classmethod
+    def empty(cls) -> "SceneEvents":
+        zero = np.zeros(0, np.int64)
+        return cls(zero, zero, zero, zero, zero)
+
+    @classmethod
+    def of(cls, events: "Sequence[Event] | SceneEvents") -> "SceneEvents":
+        """A list of :class:`Event` as columns (a :class:`SceneEvents` as it is)."""
+        if isinstance(events, SceneEvents):
+            return events
+        kinds = list(dict.fromkeys(e.kind for e in events))
+        texts = list(dict.fromkeys(e.text for e in events if e.text))
+        column = lambda values: np.array(values, np.int64).reshape(-1)  # noqa: E731
+        return cls(column([e.frame for e in events]), column([kinds.index(e.kind) for e in events]),
+                   column([e.robot for e in events]), column([e.step for e in events]),
+                   column([texts.index(e.text) if e.text else -1 for e in events]), tuple(kinds), tuple(texts)).by_frame()
+
+    def by_frame(self) -> "SceneEvents":
+        """The events in frame order (stable: events of one frame keep their order)."""
+        order = np.argsort(self.frame, kind="stable")
+        return SceneEvents(self.frame[order], self.kind[order], self.robot[order], self.step[order], self.text[order],
+                           self.kinds, self.texts)
+
+    def __len__(self) -> int:
+        return len(self.frame)
+
+    def __iter__(self):
+        for f, k, r, s, t in zip(self.frame.tolist(), self.kind.tolist(), self.robot.tolist(), self.step.tolist(), self.text.tolist()):
+            yield Event(f, self.kinds[k], r, self.texts[t] if t >= 0 else "", s)
+
+    def of_kinds(self, kinds: "Sequence[str]") -> np.ndarray:
+        """``(E,)`` whether each event is of one of ``kinds`` (shown names)."""
+        return np.isin(self.kind, [i for i, k in enumerate(self.kinds) if k in set(kinds)])
+
+    def label(self, index: int, robot_names: "Sequence[str] | None" = None) -> str:
+        """One line of event ``index``: kind, robot, step and text."""
+        kind, robot, step, text = self.kinds[self.kind[index]], int(self.robot[index]), int(self.step[index]), int(self.text[index])
+        parts = [kind] + ([robot_names[robot] if robot_names else f"robot {robot}"] if robot >= 0 else [])
+        detail = ", ".join(([f"step {step}"] if step >= 0 else []) + ([self.texts[text]] if text >= 0 else []))
+        return " · ".join(parts + ([detail] if detail else []))
+
+    def to_document(self) -> dict[str, Any]:
+        return {"kinds": list(self.kinds), "texts": list(self.texts), "frame": encode_array(self.frame, "i4"),
+                "kind": encode_array(self.kind, "i4"), "robot": encode_array(self.robot, "i4"),
+                "step": encode_array(self.step, "i4"), "text": encode_array(self.text, "i4")}
 
 
 @dataclass
@@ -137,8 +204,9 @@ class Scene:
     Attributes
     ----------
     family, title, subtitle: what is replayed (the title names scenario, method and seed).
-    steps: ``(F,)`` the recorded state index of each frame.
+    steps: ``(F,)`` the simulation step of each frame (its recorded row × ``record_every``).
     times: ``(F,)`` simulated time of each frame, in ``time_unit``.
+    events: the events on their frames (:class:`SceneEvents`; a list of :class:`Event` is turned into it).
     positions: ``(F, N, D)`` robot coordinates, ``D`` = 2 or 3.
     radius: drawn radius in length units (0: a point of ``point_px`` pixels).
     robot_colors: ``(N,)`` index into ``palette`` per robot.
@@ -172,11 +240,14 @@ class Scene:
     coordinates: dict[str, np.ndarray] = field(default_factory=dict)
     shapes: list[Shape] = field(default_factory=list)
     layers: list[Layer] = field(default_factory=list)
-    events: list[Event] = field(default_factory=list)
+    events: SceneEvents = field(default_factory=SceneEvents.empty)
     legend: list[dict[str, Any]] = field(default_factory=list)
     trail: int = 0
     notes: list[str] = field(default_factory=list)
     solids: list[dict[str, Any]] = field(default_factory=list)
+
+    def __post_init__(self) -> None:
+        self.events = SceneEvents.of(self.events)
 
     @property
     def n_frames(self) -> int:
@@ -214,6 +285,8 @@ class Scene:
         for f in self.fields:
             if np.shape(f.values) not in ((F, N), (F,)):
                 raise ConfigError(f"Scene: field {f.name!r}: expected shape ({F}, {N}) or ({F},), received {np.shape(f.values)}")
+        if len(self.events) and (self.events.frame.min() < 0 or self.events.frame.max() >= F):
+            raise ConfigError(f"Scene: events: expected frames in [0, {F}), received {int(self.events.frame.min())}–{int(self.events.frame.max())}")
         for layer in self.layers:
             if "offsets" in layer.arrays and len(layer.arrays["offsets"]) != F + 1:
                 raise ConfigError(f"Scene: layer {layer.group!r}: offsets: expected {F + 1} entries, received {len(layer.arrays['offsets'])}")
@@ -249,23 +322,45 @@ class Scene:
                         "arrays": {k: encode_array(v, "i4" if np.asarray(v).dtype.kind in "biu" else "f4")
                                    for k, v in la.arrays.items()}}
                        for la in self.layers if not la.is_empty()],
-            "events": [{"frame": e.frame, "kind": e.kind, "robot": e.robot, "text": e.text} for e in self.events],
+            "events": self.events.to_document(),
             "groups": self.groups(), "legend": self.legend, "notes": self.notes,
         }
 
 
+ENCODE_CHUNK_BYTES = 1 << 22
+"""Bytes of an array converted and deflated at a time by :func:`encode_array`."""
+DEFLATE_LEVEL = 1
+"""zlib level of the page's arrays (byte planes deflate well at the fastest level)."""
+
+
 def encode_array(array: Any, dtype: str) -> dict[str, Any]:
-    """``{"dtype", "shape", "data"}``: the array as little-endian ``dtype`` (``f4``,
-    ``i4`` or ``u1``), zlib-deflated and base64-encoded (non-finite floats become NaN)."""
-    values = np.ascontiguousarray(np.asarray(array), dtype=np.dtype(_DTYPES[dtype]).newbyteorder("<"))
-    packed = zlib.compress(values.tobytes(), 6)
-    return {"dtype": dtype, "shape": list(values.shape), "data": base64.b64encode(packed).decode("ascii")}
+    """``{"dtype", "shape", "shuffle", "data"}``: the array as little-endian ``dtype``
+    (``f4``, ``i4`` or ``u1``; non-finite floats become NaN), its bytes grouped by plane
+    (every value's first byte, then every second byte, …: ``shuffle``, which lets floats
+    deflate to about half), zlib-deflated and base64-encoded. Converted and deflated in
+    chunks of :data:`ENCODE_CHUNK_BYTES` bytes, one plane at a time (no full-size copy)."""
+    source = np.asarray(array)
+    target = np.dtype(_DTYPES[dtype]).newbyteorder("<")
+    flat = source.reshape(-1)
+    width = target.itemsize
+    step = max(1, ENCODE_CHUNK_BYTES // width)
+    packer = zlib.compressobj(DEFLATE_LEVEL)
+    packed = []
+    for plane in range(width):
+        for start in range(0, len(flat), step):
+            values = np.ascontiguousarray(flat[start:start + step], dtype=target)
+            packed.append(packer.compress(values.view(np.uint8)[plane::width].tobytes()))
+    packed.append(packer.flush())
+    return {"dtype": dtype, "shape": list(source.shape), "shuffle": True, "data": base64.b64encode(b"".join(packed)).decode("ascii")}
 
 
 def decode_array(doc: dict[str, Any]) -> np.ndarray:
     """Inverse of :func:`encode_array`."""
-    raw = zlib.decompress(base64.b64decode(doc["data"]))
-    return np.frombuffer(raw, dtype=np.dtype(_DTYPES[doc["dtype"]]).newbyteorder("<")).reshape(doc["shape"])
+    raw = np.frombuffer(zlib.decompress(base64.b64decode(doc["data"])), np.uint8)
+    dtype = np.dtype(_DTYPES[doc["dtype"]]).newbyteorder("<")
+    if doc.get("shuffle"):
+        raw = np.ascontiguousarray(raw.reshape(dtype.itemsize, -1).T)
+    return raw.view(dtype).reshape(doc["shape"])
 
 
 def per_frame(items: Sequence[Sequence[Sequence[float]]], width: int) -> tuple[np.ndarray, np.ndarray]:
@@ -277,7 +372,8 @@ def per_frame(items: Sequence[Sequence[Sequence[float]]], width: int) -> tuple[n
 
 
 def frames_of_steps(steps: np.ndarray, frame_steps: np.ndarray) -> np.ndarray:
-    """The first frame whose state index is ≥ each step (clipped to the last frame)."""
+    """The first frame whose step is ≥ each step (clipped to the last frame): the frame
+    covering it, frame ``f`` covering the steps after frame ``f − 1``'s up to its own."""
     return np.minimum(np.searchsorted(frame_steps, np.asarray(steps), side="left"), len(frame_steps) - 1)
 
 

@@ -12,7 +12,7 @@ from .building import (
     MAX_FRAMES,
     event_marks,
     outcome_subtitle,
-    replay_steps,
+    replay_frames,
     stride_note,
     trace_events,
     workspace_shapes,
@@ -34,22 +34,27 @@ SEARCH_EVENTS = {"target_found": "target found", "failure": "failure", "failure_
 
 
 def first_visit_frames(trace: Trace, steps: np.ndarray) -> np.ndarray:
-    """``(V,)``: the frame from which each grid vertex has been visited (``-1``: never)."""
+    """``(V,)``: the frame from which each grid vertex has been visited (``-1``: never),
+    from the kept rows of ``vertex`` (row ``j``: step ``j · record_every``)."""
     n_vertices = len(trace.metadata.get("grid_points", []))
     vertex = trace.arrays["vertex"][..., 0]
     first = np.full(n_vertices, -1, np.int64)
-    for step in range(len(vertex) - 1, -1, -1):  # the earliest step wins
-        first[vertex[step]] = step
-    return np.where(first >= 0, frames_of_steps(np.maximum(first, 0), steps), -1)
+    for row in range(len(vertex) - 1, -1, -1):  # the earliest row wins
+        first[vertex[row]] = row
+    return np.where(first >= 0, frames_of_steps(np.maximum(first, 0) * trace.record_every, steps), -1)
 
 
 def found_target_frames(trace: Trace, steps: np.ndarray) -> np.ndarray:
     """``(T,)``: the frame each target was first found at (``-1``: never)."""
     n_targets = len(trace.metadata.get("targets", []))
     found = np.full(n_targets, -1, np.int64)
-    for e in trace.events:
-        if e.get("kind") == "target_found" and found[int(e["target"])] < 0:
-            found[int(e["target"])] = int(frames_of_steps(np.array([int(e["step"])]), steps)[0])
+    events = trace.events
+    chosen = events.kind_mask("target_found")
+    if not chosen.any():
+        return found
+    targets, frames = events.column("target", -1)[chosen], frames_of_steps(events.steps[chosen], steps)
+    for target, frame in zip(targets[::-1].tolist(), frames[::-1].tolist()):  # the first event of each target wins
+        found[target] = frame
     return found
 
 
@@ -57,9 +62,10 @@ def failed_mask(trace: Trace, steps: np.ndarray) -> np.ndarray:
     """``(F, N)``: the robot has failed by the frame's step."""
     n = trace.positions.shape[1]
     failed = np.zeros((len(steps), n), bool)
-    for e in trace.events:
-        if e.get("kind") == "failure":
-            failed[steps >= int(e["step"]), int(e["robot"])] = True
+    events = trace.events
+    chosen = events.kind_mask("failure")
+    for step, robot in zip(events.steps[chosen].tolist(), events.column("robot", -1)[chosen].tolist()):
+        failed[steps >= step, robot] = True
     return failed
 
 
@@ -77,10 +83,10 @@ def replay_scene(trace: Trace, max_frames: int = MAX_FRAMES) -> Scene:
     """The replay of a search run: the area, its grid (accessible vertices as dots,
     inaccessible as crosses), visited vertices, targets (found ones filled), the robots
     (failed ones crossed out), their communication links within r_c, and the events."""
-    n_states, n = trace.positions.shape[:2]
-    steps = replay_steps(n_states, n, max_frames)
-    times = trace.arrays["time"][steps, 0, 0] if "time" in trace.arrays else steps.astype(float)
-    coords = trace.positions[steps]
+    n_states = len(trace.positions)
+    rows, steps = replay_frames(trace, max_frames)
+    times = trace.arrays["time"][rows, 0, 0] if "time" in trace.arrays else steps.astype(float)
+    coords = trace.positions[rows]
     md = trace.metadata
     points = np.asarray(md.get("grid_points", np.zeros((0, 2))), float).reshape(-1, 2)
     accessible = np.asarray(md.get("accessible", np.ones(len(points), bool)), bool)
@@ -105,14 +111,15 @@ def replay_scene(trace: Trace, max_frames: int = MAX_FRAMES) -> Scene:
         offsets, xy, robots = event_marks(events, coords, kinds, hold)
         layers.append(Layer("marks", group, {"offsets": offsets, "xy": xy, "robot": robots},
                             {"marker": "ring", "stroke": color, "size": 22, "width": 2}))
-    fields = [Field("vertex", trace.arrays["vertex"][steps, :, 0].astype(float), digits=0),
+    fields = [Field("vertex", trace.arrays["vertex"][rows, :, 0].astype(float), digits=0),
               Field("visited vertices (team)", _visited_counts(trace, steps).astype(float), digits=0)]
     lo, hi = (np.array(trace.workspace.extent[:2]), np.array(trace.workspace.extent[2:])) if trace.workspace is not None else (
         coords.reshape(-1, 2).min(axis=0) - 1, coords.reshape(-1, 2).max(axis=0) + 1)
     scene = Scene("search", run_title(trace), outcome_subtitle(trace, ("success", "search_time", "found_targets", "visited_share")),
                   steps, times, coords, [View("area (x, y)", (0, 1), ("x [m]", "y [m]"), lo, hi)],
                   radius=float(md.get("radius", 0.0)), status=failed.astype(np.uint8), statuses=SEARCH_STATUSES,
-                  fields=fields, shapes=shapes, layers=layers, events=events, trail=len(steps), notes=stride_note(steps, n_states))
+                  fields=fields, shapes=shapes, layers=layers, events=events, trail=len(steps),
+                  notes=stride_note(rows, n_states, trace.record_every))
     scene.legend = _search_legend(scene, failed.any())
     return scene
 
