@@ -18,14 +18,13 @@ import textwrap
 from pathlib import Path
 
 import matplotlib.figure
-import numpy as np
 import PIL.Image
 import pytest
 import yaml
 
 from robofleet.cli.main import RUN_FILES, main
 from robofleet.core.files import is_temporary
-from robofleet.core.trace import Trace
+from robofleet.core.trace import Trace, write_npz
 
 TINY = {"family": "avoidance", "name": "tiny", "method": "buavc", "delta": 0.1, "dt": 0.1, "max_steps": 3,
         "goal_tolerance": 0.1, "local_box": 2.0, "workspace": {"bounds": [-3, -3, 3, 3]},
@@ -109,7 +108,7 @@ def half_written_text(name: str):
 
 WRITERS = {  # point → (what to patch, its replacement), figures on
     "simulation": ("robofleet.cli.main.simulate", lambda: interrupt),
-    "trace.npz half written": ("numpy.savez_compressed", lambda: half_written(np.savez_compressed, 0, ".npz")),
+    "trace.npz half written": ("robofleet.core.trace.write_npz", lambda: half_written(write_npz, 0, ".npz")),
     "trace.json half written": ("pathlib.Path.write_text", lambda: half_written_text("trace.json")),
     "summary.json half written": ("pathlib.Path.write_text", lambda: half_written_text("summary.json")),
     "plot.png half written": ("matplotlib.figure.Figure.savefig", lambda: half_written(matplotlib.figure.Figure.savefig, 1, ".png")),
@@ -179,7 +178,7 @@ def test_ctrl_c_at_every_rename_leaves_one_complete_run_and_says_which(renames, 
 
 def test_ctrl_c_before_anything_is_written_to_a_new_directory_leaves_nothing(scenario, tmp_path, capsys, monkeypatch):
     out = tmp_path / "deep" / "new" / "run"
-    monkeypatch.setattr("numpy.savez_compressed", half_written(np.savez_compressed, 0, ".npz"))
+    monkeypatch.setattr("robofleet.core.trace.write_npz", half_written(write_npz, 0, ".npz"))
     with pytest.raises(SystemExit) as stop:
         main(["run", str(scenario), "--seed", "3", "--out", str(out), "--quiet"])
     assert stop.value.code == 130
@@ -194,6 +193,7 @@ CHILD = textwrap.dedent("""
     import matplotlib.figure
     import robofleet.cli.main as cli
     import robofleet.core.files as files
+    import robofleet.core.trace as trace
 
     point, out = sys.argv[1], sys.argv[2]
 
@@ -207,7 +207,7 @@ CHILD = textwrap.dedent("""
     if point == "simulation":
         cli.simulate = sigint_then(cli.simulate)
     elif point == "trace.npz":
-        np.savez_compressed = sigint_then(np.savez_compressed)
+        trace.write_npz = sigint_then(trace.write_npz)
     elif point == "swap":  # inside the renames that put the new run in place
         files.move_in = sigint_then(files.move_in, lambda stage, directory, replaced: str(directory) == out)
     elif point == "plot.png":
