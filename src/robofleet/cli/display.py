@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-import pandas as pd
 from rich.table import Table
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 MIN_TABLE_COLUMNS = 3  # value columns shown however narrow the terminal
 COLUMN_WIDTH = 11  # characters a numeric column needs to stay readable
