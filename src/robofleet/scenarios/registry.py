@@ -85,6 +85,7 @@ def simulate(scenario: ScenarioSource, seed: int | None = None, progress: bool =
     import numpy as np
 
     from ..core.config import SpecModel
+    from ..core.progress import compile_notice
 
     spec = scenario if isinstance(scenario, SpecModel) else load_scenario(scenario)
     fam = FAMILIES.get(getattr(spec, "family", None)) if isinstance(getattr(spec, "family", None), str) else None
@@ -94,7 +95,8 @@ def simulate(scenario: ScenarioSource, seed: int | None = None, progress: bool =
         raise ConfigError(f"progress: expected True or False, received {short_repr(progress)}")
     check_run_size(spec.run_size(), spec.source)
     try:
-        return fam.simulate(spec, seed=seed, progress=bool(progress))
+        with compile_notice(bool(progress)):
+            return fam.simulate(spec, seed=seed, progress=bool(progress))
     except ScenarioError as exc:
         if exc.source is None and spec.source:  # found while running: name the scenario's file
             raise exc.with_source(spec.source) from None
