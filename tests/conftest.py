@@ -51,6 +51,7 @@ EXTENDED = (
     "avoidance/test_models_scenarios.py", "avoidance/test_mpc.py", "avoidance/test_mpc_rti.py",
     "avoidance/test_navigation.py", "avoidance/test_orca.py", "avoidance/test_premise.py",
     "coordination/test_theorems.py", "coordination/test_supervisor_threads.py", "flocking/test_axis_slot.py",
+    "coordination/test_peers.py", "coordination/test_compiled.py", "search/test_baselines.py", "cli/test_damaged_traces.py",
 )
 """Tests (folders and files below tests/) left out of ``make check``, marked ``extended``:
 ``make test`` runs them."""
