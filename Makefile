@@ -4,7 +4,7 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 
-.PHONY: demo test bench docs clean install
+.PHONY: demo check test bench docs clean install
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -16,6 +16,9 @@ install: $(STAMP)
 
 demo: $(STAMP)
 	MPLBACKEND=Agg $(BIN)/robofleet run scenarios/avoidance/circle_swap.yaml --seed 1 --out runs/demo --overwrite --animate
+
+check: $(STAMP)
+	MPLBACKEND=Agg $(BIN)/python -m pytest -n 2 -q -m "not slow and not extended"
 
 test: $(STAMP)
 	@command -v chromium >/dev/null || echo "note: no chromium on PATH: the browser tests of the replay pages (tests/viz) are skipped (apt-get install chromium)"

@@ -37,3 +37,33 @@ def robofleet_bin() -> Path:
     if not path.exists():
         pytest.fail(f"console script not installed at {path}")
     return path
+
+
+EXTENDED = (
+    # whole runs, sweeps, reproductions, processes, builds, the browser
+    "conformance/", "fuzz/", "ros2/", "viz/", "experiments/", "envs/", "test_wheel.py", "test_docs.py", "test_examples.py",
+    "test_benchmarks_smoke.py", "test_readme.py", "test_docs_snippets.py", "cli/test_memory_budget.py",
+    "cli/test_run_interrupted.py", "avoidance/test_reproduce.py", "coordination/test_reproduce.py",
+    "flocking/test_reproduce.py", "search/test_reproduce.py", "flocking/test_family.py", "coordination/test_family.py",
+    # long randomized searches and closed loops of the algorithms
+    "avoidance/test_braking_adversarial.py", "avoidance/test_braking.py", "avoidance/test_cell3d.py",
+    "avoidance/test_cell_kernels.py", "avoidance/test_detour.py", "avoidance/test_liveness.py",
+    "avoidance/test_models_scenarios.py", "avoidance/test_mpc.py", "avoidance/test_mpc_rti.py",
+    "avoidance/test_navigation.py", "avoidance/test_orca.py", "avoidance/test_premise.py",
+    "coordination/test_theorems.py", "coordination/test_supervisor_threads.py", "flocking/test_axis_slot.py",
+    "coordination/test_peers.py", "coordination/test_compiled.py", "search/test_baselines.py", "cli/test_damaged_traces.py",
+)
+"""Tests (folders and files below tests/) left out of ``make check``, marked ``extended``:
+``make test`` runs them."""
+
+
+def pytest_collection_modifyitems(config, items):
+    """Mark the :data:`EXTENDED` tests; put the long tests (marked ``slow``) first: the
+    workers of ``pytest -n 2`` start them at once and share the short ones after, instead
+    of ending the run waiting on one of them."""
+    tests = Path(__file__).parent
+    for item in items:
+        where = item.path.relative_to(tests).as_posix() if item.path.is_relative_to(tests) else ""
+        if where.startswith(EXTENDED):
+            item.add_marker(pytest.mark.extended)
+    items.sort(key=lambda item: item.get_closest_marker("slow") is None)

@@ -1,10 +1,18 @@
-"""The shape of the code: layers, no import circles, the same files in every family."""
+"""The shape of the code: layers, no import circles, the same files in every family; what
+importing the package and the quick commands load."""
 
 from __future__ import annotations
 
+import dataclasses
+import importlib
+import subprocess
+import sys
 from pathlib import Path
 
+import pytest
+
 import robofleet
+from robofleet.core.errors import ConfigError
 from robofleet.core.family import Family
 from robofleet.scenarios import FAMILIES
 from robofleet.testing.layers import FAMILY_PACKAGES, read_graph
@@ -36,3 +44,61 @@ def test_every_family_package_has_the_contract_files_and_is_in_the_table():
 
 def test_the_package_is_typed():
     assert (PACKAGE_DIR / "py.typed").is_file()
+
+
+NUMERICAL_LIBRARIES = ("numba", "scipy", "matplotlib", "pandas", "pyarrow")
+
+
+def modules_loaded_by(code: str) -> list[str]:
+    """The numerical libraries a fresh interpreter holds after running ``code``."""
+    probe = f"import sys\n{code}\nprint('loaded:', *(m for m in {NUMERICAL_LIBRARIES!r} if m in sys.modules))"
+    result = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, timeout=120)
+    assert result.returncode == 0, result.stderr[-2000:]
+    return result.stdout.splitlines()[-1].split()[1:]
+
+
+@pytest.mark.parametrize("module", ["robofleet", "robofleet.cli.main"])
+def test_importing_the_package_or_its_command_line_loads_no_numerical_library(module):
+    assert modules_loaded_by(f"import {module}") == []
+
+
+@pytest.mark.parametrize("command", [["--version"], ["--help"], ["scenarios"], ["scenarios", "--sweeps"]])
+def test_commands_that_answer_at_once_load_no_numerical_library(command):
+    code = f"from robofleet.cli.main import main\ntry:\n    main({command!r})\nexcept SystemExit as exc:\n    assert not exc.code, exc.code"
+    assert modules_loaded_by(code) == []
+
+
+@pytest.mark.parametrize("scenario", ["avoidance/circle_swap", "coordination/x_corridor_5_tff", "flocking/wedge_async", "search/fig7"])
+def test_validating_a_scenario_loads_no_plotting_or_table_library(scenario):
+    code = f"from robofleet.cli.main import main\nmain(['validate', {scenario!r}])\nassert 'scipy.stats' not in sys.modules"
+    assert set(modules_loaded_by(code)).isdisjoint({"matplotlib", "pandas", "pyarrow"})
+
+
+def test_the_public_names_of_every_package_resolve():
+    for package in ("robofleet", "robofleet.core", "robofleet.scenarios", *(f"robofleet.{f}" for f in FAMILY_PACKAGES),
+                    "robofleet.experiments"):
+        module = importlib.import_module(package)
+        for name in module.__all__:
+            assert getattr(module, name) is not None, f"{package}.{name}"
+            assert name in dir(module)
+
+
+def test_a_public_name_that_is_also_a_submodule_name_keeps_naming_the_public_object():
+    code = ("import robofleet.avoidance.buffer as imported_first\nimport robofleet.avoidance as avoidance\n"
+            "assert callable(avoidance.buffer) and avoidance.buffer.__name__ == 'buffer', avoidance.buffer\n"
+            "from robofleet.avoidance import buffer\nassert buffer is avoidance.buffer")
+    modules_loaded_by(code)
+
+
+def test_family_fields_given_as_paths_are_imported_on_first_read():
+    toy = Family(name="toy", title="t", paper="p", spec="robofleet.search.spec:Spec", simulate="robofleet.search.simulation:simulate",
+                 check="robofleet.search.guarantees:check", viz="robofleet.viz.search", budget="max_steps",
+                 results="robofleet.search.metrics:RESULTS")
+    from robofleet.search.spec import Spec
+
+    assert toy.spec is Spec and toy.results == importlib.import_module("robofleet.search.metrics").RESULTS
+    with pytest.raises(ConfigError, match="spec: expected a validated toy scenario"):  # the entry points still check their argument
+        toy.simulate(None)
+    broken = dataclasses.replace(toy, check="robofleet.search.guarantees:no_such_check")
+    with pytest.raises(ConfigError, match=r"family 'toy': check: expected a \"module:attribute\" path that exists, received "):
+        broken.check

@@ -360,11 +360,24 @@ def test_ground_double_integrators_keep_their_cells_among_3d_boxes():
         assert_safe(run_boxes_world(seed, 40))
 
 
+FULL_SEARCH = {  # the full search, in parts that the workers of `pytest -n 2` share
+    "arenas 1000-1019": lambda: search(range(1000, 1020), 50, 50),
+    "arenas 1020-1039": lambda: search(range(1020, 1040), 50, 50),
+    "roadmap 2000-2039": lambda: search(range(2000, 2040), 1, 60, roadmap=True),
+}
+
+
 @pytest.mark.slow
-def test_braking_adversarial_search_thousands_of_episodes():
-    """The full search: thousands of arenas (navigation off and on, any ``a_max``) and
-    3-D spaces with boxes (about 50 s on one core)."""
-    assert_safe(search(range(1000, 1040), 50, 50))
-    assert_safe(search(range(2000, 2040), 1, 60, roadmap=True))
-    for seed in range(3000, 3040):
+@pytest.mark.parametrize("part", FULL_SEARCH)
+def test_braking_adversarial_search_thousands_of_episodes(part):
+    """The full search: thousands of arenas (navigation off and on, any ``a_max``); its 3-D
+    part is the next test (together about 50 s on one core)."""
+    assert_safe(FULL_SEARCH[part]())
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("seeds", [range(3000, 3020), range(3020, 3040)], ids=["boxes 3000-3019", "boxes 3020-3039"])
+def test_braking_adversarial_search_among_3d_boxes(seeds):
+    """The full search's 3-D spaces with boxes."""
+    for seed in seeds:
         assert_safe(run_boxes_world(seed, 40))

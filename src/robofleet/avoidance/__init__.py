@@ -11,15 +11,7 @@ Public API:
 * :func:`confidence_quantile`, :func:`shadow_epsilon` — the chance-constraint constants.
 """
 
-from .buffer import buffer, confidence_quantile, shadow_epsilon
-from .cell import CellGeometry, Cells, Kind, build_cells, cell_from_view
-from .guarantees import check
-from .obstacles import ObstacleSet, obstacle_planes, wall_planes
-from .projection import project_onto_cells
-from .safety_filter import FilterResult, RobotSafetyFilter, SafetyFilter
-from .separator import gaussian_separator
-from .simulation import simulate
-from .spec import Spec
+from ..core.lazy import exports
 
 __all__ = [
     "Spec", "simulate", "check",
@@ -27,3 +19,14 @@ __all__ = [
     "project_onto_cells", "confidence_quantile", "shadow_epsilon", "buffer",
     "ObstacleSet", "obstacle_planes", "wall_planes", "SafetyFilter", "RobotSafetyFilter", "FilterResult",
 ]
+__getattr__, __dir__ = exports(__name__, {
+    ".buffer": ["buffer", "confidence_quantile", "shadow_epsilon"],
+    ".cell": ["CellGeometry", "Cells", "Kind", "build_cells", "cell_from_view"],
+    ".guarantees": ["check"],
+    ".obstacles": ["ObstacleSet", "obstacle_planes", "wall_planes"],
+    ".projection": ["project_onto_cells"],
+    ".safety_filter": ["FilterResult", "RobotSafetyFilter", "SafetyFilter"],
+    ".separator": ["gaussian_separator"],
+    ".simulation": ["simulate"],
+    ".spec": ["Spec"],
+})

@@ -11,13 +11,14 @@ slab of width ``r_i + r_j`` separates the two discs.
 from __future__ import annotations
 
 import numpy as np
-from scipy.special import ndtri
 
 from ..core.errors import ConfigError, short_repr
 
 
 def confidence_quantile(delta: float) -> float:
     """``Φ⁻¹(√(1 − δ))``; e.g. 1.632 for δ = 0.10, 2.575 for δ = 0.01."""
+    from scipy.special import ndtri  # imported on use: scenario files are read without scipy
+
     return float(ndtri(np.sqrt(1.0 - checked_delta(delta))))
 
 

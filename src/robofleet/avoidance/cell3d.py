@@ -12,7 +12,6 @@ from __future__ import annotations
 from itertools import combinations, product
 
 import numpy as np
-from scipy.stats import chi2
 
 _FEAS_TOL = 1e-9
 _CHUNK = 128
@@ -93,6 +92,8 @@ def _affine_projections(g, A, b, valid, subsets):
 # ----------------------------------------------------------------------------------------
 def shadow_radius(epsilon: float, dim: int) -> float:
     """Radius ``√(χ²_d⁻¹(1 − ε))`` of the whitened displacement ball (appendix A, Lemma 1)."""
+    from scipy.stats import chi2  # imported on use: scipy.stats alone takes most of a second to load
+
     return float(np.sqrt(chi2.ppf(1.0 - epsilon, dim)))
 
 

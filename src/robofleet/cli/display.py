@@ -8,12 +8,14 @@ Values are shown as ``summary.json`` and the result store hold them: a missing v
 from __future__ import annotations
 
 import json
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-import pandas as pd
 from rich.table import Table
 
 from ..core.trace import to_plain
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 MIN_TABLE_COLUMNS = 3  # value columns shown however narrow the terminal
 COLUMN_WIDTH = 11  # characters a numeric column needs to stay readable
@@ -41,6 +43,8 @@ def is_missing(value: Any) -> bool:
     """Whether ``value`` is a missing value: ``None``, or a scalar pandas counts as missing (NaN, ``NA``, ``NaT``)."""
     if value is None:
         return True
+    import pandas as pd
+
     try:
         return bool(pd.api.types.is_scalar(value) and pd.isna(value))
     except (TypeError, ValueError):

@@ -12,27 +12,21 @@ import os
 import sys
 import warnings
 from contextlib import contextmanager
-from importlib.metadata import version as installed_version
 from pathlib import Path
-from typing import Annotated, Iterator, Optional
+from typing import TYPE_CHECKING, Annotated, Iterator, Optional
 
-import pandas as pd
 import typer
-from rich.console import Console
+from typer.core import TyperCommand
 
 from ..core.budget import MEMORY_BUDGET_VARIABLE, parse_size
-from ..core.config import read_mapping
 from ..core.errors import ConfigError, Interrupted, RobofleetError, one_line, short_repr
 from ..core.files import Staging, is_temporary, staged_files, write_text
-from ..core.rng import resolve_seed
-from ..core.trace import dumps_json
-from ..experiments import reproduce as run_reproduction
-from ..experiments import plan_sweep, run_sweep, summarize_sweep
-from ..experiments.reproductions import REPRODUCTIONS
 from ..ros2.cli import export_command, ros2_app
 from ..scenarios import FAMILIES, catalogue, family_of, load_scenario, simulate
-from ..viz.replay.building import MAX_FRAMES
-from .display import COLUMN_WIDTH, MIN_TABLE_COLUMNS, PREFERRED_COLUMNS, frame_table, key_value_table
+from ..viz.replay import MAX_FRAMES
+
+if TYPE_CHECKING:  # the commands import what they use when they run: `robofleet --help` loads no numerical library
+    import pandas as pd
 
 INTERRUPTED = 130  # the exit status of a process stopped by Ctrl-C (128 + SIGINT)
 PAPERS = "; ".join(f"{f.name}: {f.paper}" for f in FAMILIES.values())
@@ -69,6 +63,8 @@ def resumable() -> Iterator[None]:
 
 def version_callback(value: bool) -> None:
     if value:
+        from importlib.metadata import version as installed_version
+
         typer.echo(f"robofleet {installed_version('robofleet')}")
         raise typer.Exit()
 
@@ -97,6 +93,12 @@ def run_command(
     replacing nothing until complete. Ctrl-C at any moment leaves the earlier run or the
     new one, and its line names the files on disk (:func:`what_is_on_disk`).
     """
+    from rich.console import Console
+
+    from ..core.rng import resolve_seed
+    from ..core.trace import dumps_json
+    from .display import key_value_table
+
     use_memory_budget(memory_budget)
     if is_sweep(scenario):
         raise ConfigError(f"SCENARIO: expected a scenario file, received the sweep {scenario} (run it with `robofleet sweep`)")
@@ -179,6 +181,8 @@ def validate_command(scenario: Annotated[str, typer.Argument(help="A scenario or
     if is_sweep(scenario):
         if assignments:
             raise ConfigError(f"--set: expected a scenario, received the sweep {scenario} (a sweep sets fields under overrides: and grid:)")
+        from ..experiments import plan_sweep
+
         plan = plan_sweep(scenario)
         typer.echo(f"ok: {plan.source or scenario} (sweep: {len(plan.combinations)} grid points × {len(plan.seeds)} seeds = {len(plan.tasks)} runs)")
         return
@@ -197,6 +201,8 @@ def scenario_with(scenario: str, assignments: list[str] | None):
 def is_sweep(ref: str) -> bool:
     """Whether ``ref`` names a sweep: a YAML file with a top-level ``scenario`` key and no
     ``family`` key, or a shipped sweep name that is no scenario name."""
+    from ..core.config import read_mapping
+
     path = Path(ref)
     if catalogue.is_file(path):
         try:
@@ -297,6 +303,8 @@ def sweep_command(
     memory_budget: MemoryBudgetOption = None,
 ) -> None:
     """Run a sweep, resuming from its result store; print the means per parameter combination."""
+    from ..experiments import run_sweep
+
     use_memory_budget(memory_budget)
     with resumable():
         frame = run_sweep(sweep, executor=executor, scheduler=scheduler, progress=not quiet, workers=workers, out=out)
@@ -313,6 +321,11 @@ def sweep_command(
 
 def print_means(frame: pd.DataFrame) -> None:
     """The sweep's means per grid combination, the headline columns first."""
+    from rich.console import Console
+
+    from ..experiments import summarize_sweep
+    from .display import COLUMN_WIDTH, MIN_TABLE_COLUMNS, PREFERRED_COLUMNS, frame_table
+
     means = summarize_sweep(frame)
     leading = list(means.columns[: len(frame.attrs["grid"]) + 2])
     values = [c for c in means.columns if c not in leading]
@@ -322,13 +335,24 @@ def print_means(frame: pd.DataFrame) -> None:
     console.print(frame_table(means[leading + values], "means per parameter combination", leading=len(leading), values=fits))
 
 
-REPRODUCE_HELP = "Reproduce a paper's experiment: sweeps, summary.csv, table.md and figures. NAME is one of: " + "; ".join(
-    f"{r.name} ({r.paper})" for r in REPRODUCTIONS.values())
+REPRODUCE_SUMMARY = "Reproduce a paper's experiment: sweeps, summary.csv, table.md and figures."
 
 
-@app.command("reproduce", help=REPRODUCE_HELP)
+class ReproduceCommand(TyperCommand):
+    """``reproduce``, whose help lists the declared reproductions and their papers: the
+    declarations (and the libraries their tables and figures use) are imported only when
+    that help is shown."""
+
+    def format_help_text(self, ctx, formatter) -> None:
+        from ..experiments.reproductions import REPRODUCTIONS
+
+        self.help = f"{REPRODUCE_SUMMARY} NAME is one of: " + "; ".join(f"{r.name} ({r.paper})" for r in REPRODUCTIONS.values())
+        super().format_help_text(ctx, formatter)
+
+
+@app.command("reproduce", cls=ReproduceCommand, help=REPRODUCE_SUMMARY)
 def reproduce_command(
-    name: Annotated[str, typer.Argument(help="The experiment: " + ", ".join(REPRODUCTIONS) + ".")],
+    name: Annotated[str, typer.Argument(help="The experiment: one of the names above.")],
     out: OutOption = None,
     seeds: Annotated[Optional[int], typer.Option(min=1, help="Seeds per grid point (overrides the budget's).")] = None,
     budget: Annotated[str, typer.Option(help="How much to run: smallest (a smoke run), default, or full (the paper's size).")] = "default",
@@ -337,6 +361,9 @@ def reproduce_command(
     workers: WorkersOption = None,
     quiet: QuietOption = False,
 ) -> None:
+    from ..experiments import reproduce as run_reproduction
+    from ..experiments.reproductions import REPRODUCTIONS
+
     if name not in REPRODUCTIONS:
         raise RobofleetError(f"reproduce: NAME: expected one of {sorted(REPRODUCTIONS)}, received {name!r}")
     declaration = REPRODUCTIONS[name]

@@ -10,15 +10,7 @@ label flipping: BTPG (:mod:`.btpg`) and the optimal passing orders within a hori
 (``guarantees.py``) and ``FAMILY`` (``family.py``).
 """
 
-from .coordination_space import CoordinationSpace, build_coordination_space
-from .family import FAMILY
-from .guarantees import TheoryReport, check, check_theory
-from .plan_execution import ALL_VARIANTS, Estimate, Execution, Method, PlanExecutor, Variant
-from .segment_graph import IncrementalCycleDetector, Resolution, SegmentLayout, build_segment_layout, has_cycle_full
-from .simulation import simulate
-from .spec import Spec
-from .supervisor import Answer, Supervisor
-from .trajectories import Trajectories, load_trajectories, make_trajectories, save_trajectories
+from ..core.lazy import exports
 
 __all__ = [
     "CoordinationSpace", "build_coordination_space", "FAMILY", "TheoryReport", "check", "check_theory",
@@ -26,3 +18,14 @@ __all__ = [
     "Resolution", "SegmentLayout", "build_segment_layout", "has_cycle_full", "simulate", "Spec", "Trajectories",
     "load_trajectories", "make_trajectories", "save_trajectories", "Supervisor", "Answer",
 ]
+__getattr__, __dir__ = exports(__name__, {
+    ".coordination_space": ["CoordinationSpace", "build_coordination_space"],
+    ".family": ["FAMILY"],
+    ".guarantees": ["TheoryReport", "check", "check_theory"],
+    ".plan_execution": ["ALL_VARIANTS", "Estimate", "Execution", "Method", "PlanExecutor", "Variant"],
+    ".segment_graph": ["IncrementalCycleDetector", "Resolution", "SegmentLayout", "build_segment_layout", "has_cycle_full"],
+    ".simulation": ["simulate"],
+    ".spec": ["Spec"],
+    ".supervisor": ["Answer", "Supervisor"],
+    ".trajectories": ["Trajectories", "load_trajectories", "make_trajectories", "save_trajectories"],
+})

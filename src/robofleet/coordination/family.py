@@ -3,10 +3,6 @@
 from __future__ import annotations
 
 from ..core.family import Family
-from .guarantees import check
-from .metrics import RESULTS
-from .simulation import simulate
-from .spec import Spec
 
 PAPER = "a graph-based theory of deadlock for label flipping (anonymous, 2021), on RMTRACK (Čáp, Gregoire & Frazzoli 2016)"
 
@@ -14,10 +10,10 @@ FAMILY = Family(
     name="coordination",
     title="deadlock-free execution of multi-robot plans under disturbances (RMTRACK, TFF/TFA flips, segment graphs)",
     paper=PAPER,
-    spec=Spec,
-    simulate=simulate,
-    check=check,
+    spec="robofleet.coordination.spec:Spec",
+    simulate="robofleet.coordination.simulation:simulate",
+    check="robofleet.coordination.guarantees:check",
     viz="robofleet.viz.coordination",
     budget="simulation.max_steps",
-    results=RESULTS,
+    results="robofleet.coordination.metrics:RESULTS",
 )

@@ -23,6 +23,7 @@ import yaml
 from ..core.errors import ConfigError, ScenarioError, short_repr
 
 SUFFIX = ".yaml"
+YAML_LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)  # libyaml when built with it: `robofleet scenarios` reads every file
 ALIASES = {  # names of the files' earlier home, kept working
     "avoidance_models/diff_drive": "avoidance/diff_drive",
     "avoidance_models/double_integrator": "avoidance/double_integrator",
@@ -128,7 +129,7 @@ def describe(file: Path, root: Path, kind: str) -> Entry:
     if kind == "sweeps":
         family = "sweep"
     else:
-        data = yaml.safe_load(text)
+        data = yaml.load(text, Loader=YAML_LOADER)
         family = str(data["family"]) if isinstance(data, dict) and "family" in data else ""
     return Entry(name, family, description, file)
 

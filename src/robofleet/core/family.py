@@ -13,11 +13,13 @@ import functools
 import importlib
 from dataclasses import dataclass, field
 from types import ModuleType
-from typing import Any, Callable, Mapping, Protocol
+from typing import TYPE_CHECKING, Any, Callable, Mapping, Protocol
 
-from .config import SpecModel
 from .errors import ConfigError
-from .trace import Trace
+
+if TYPE_CHECKING:
+    from .config import SpecModel
+    from .trace import Trace
 
 
 @dataclass(frozen=True)
@@ -71,6 +73,10 @@ class SimulateFunction(Protocol):
     def __call__(self, spec: Any, seed: int | None = None, progress: bool = False) -> Trace: ...
 
 
+IMPORTED_ON_USE = ("spec", "simulate", "check", "results")
+"""The fields of a :class:`Family` that may name their value as ``"module:attribute"``."""
+
+
 @dataclass(frozen=True)
 class Family:
     """One paper's system, as the rest of robofleet sees it.
@@ -89,22 +95,55 @@ class Family:
     budget: dotted path of the spec's step budget (``max_steps``), which the conformance
         suite shortens to run every shipped scenario at a tiny budget.
     results: the family's own summary keys (beyond the core ones) and their meaning.
+
+    ``spec``, ``simulate``, ``check`` and ``results`` may be given as the object or as its
+    ``"module:attribute"`` path, imported when the attribute is first read (as ``viz`` is
+    when a figure is drawn): the family table then imports no algorithm, so the command
+    line answers ``--help`` at once and validating a scenario loads its own family's
+    model only. Reading the attribute gives the object either way.
     """
 
     name: str
     title: str
     paper: str
-    spec: type[SpecModel]
-    simulate: SimulateFunction
-    check: Callable[[Any], list[Guarantee]]
+    spec: type[SpecModel] | str
+    simulate: SimulateFunction | str
+    check: Callable[[Any], list[Guarantee]] | str
     viz: str
     budget: str
-    results: Mapping[str, str] = field(default_factory=dict)
+    results: Mapping[str, str] | str = field(default_factory=dict)
 
     def __post_init__(self) -> None:
-        # the entry points refuse anything but this family's spec in one line, before running
-        object.__setattr__(self, "simulate", spec_checked(self.simulate, self.spec, self.name))
-        object.__setattr__(self, "check", spec_checked(self.check, self.spec, self.name))
+        # the four fields are resolved by __getattr__ on first read: kept aside until then
+        given = {name: self.__dict__.pop(name) for name in IMPORTED_ON_USE}
+        object.__setattr__(self, "_given", given)
+
+    def __getattr__(self, name: str) -> Any:
+        given = self.__dict__.get("_given")
+        if given is None or name not in given:
+            raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
+        value = given[name]
+        if isinstance(value, str):
+            value = self.imported(name, value)
+        if name in ("simulate", "check"):
+            # the entry points refuse anything but this family's spec in one line, before running
+            value = spec_checked(value, self.spec, self.name)
+        object.__setattr__(self, name, value)
+        return value
+
+    def imported(self, field_name: str, path: str) -> Any:
+        """The object a ``"module:attribute"`` path names (one-line error if it names none)."""
+        module_name, _, attribute = path.partition(":")
+        try:
+            module = importlib.import_module(module_name)
+        except ModuleNotFoundError as exc:
+            if exc.name is None or not module_name.startswith(exc.name):
+                raise  # the module exists but needs one that is missing
+            module = None
+        if not attribute or not hasattr(module, attribute):
+            raise ConfigError(f"family {self.name!r}: {field_name}: expected a \"module:attribute\" path that exists, "
+                              f"received {path!r}")
+        return getattr(module, attribute)
 
     def viz_module(self) -> ModuleType:
         """The figures module (imported now; matplotlib is loaded only here).

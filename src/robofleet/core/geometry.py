@@ -9,7 +9,6 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 
 def box_vertices(center: Sequence[float] | np.ndarray, size: Sequence[float] | np.ndarray, yaw: float = 0.0) -> np.ndarray:
@@ -79,6 +78,8 @@ def ensure_ccw(vertices: np.ndarray) -> np.ndarray:
 
 def close_pairs(points: np.ndarray, radius: float) -> np.ndarray:
     """All index pairs ``(i, j)``, ``i < j``, with ``‖p_i − p_j‖ < radius`` (k-d tree, O(N log N + K))."""
+    from scipy.spatial import cKDTree  # imported on use: scenario files are read without scipy
+
     pts = np.asarray(points, dtype=float)
     if len(pts) < 2:
         return np.empty((0, 2), dtype=np.intp)
@@ -91,6 +92,8 @@ def close_pairs(points: np.ndarray, radius: float) -> np.ndarray:
 
 def nearest_neighbour_distance(points: np.ndarray) -> np.ndarray:
     """Distance from each point to its nearest other point (``inf`` for a single point)."""
+    from scipy.spatial import cKDTree  # imported on use: scenario files are read without scipy
+
     pts = np.asarray(points, dtype=float)
     if len(pts) < 2:
         return np.full(len(pts), np.inf)

@@ -11,14 +11,17 @@ declared reproductions.
   per grid combination.
 """
 
-from .executors import Executor
-from .reproduction import Budget, Reproduction, ReproductionResult, reproduce
-from .store import ResultStore, deterministic_columns
-from .sweep import SweepPlan, SweepSpec, plan_sweep, run_sweep, summarize_sweep
-from .tasks import run_tasks
+from ..core.lazy import exports
 
 __all__ = [
     "Executor", "ResultStore", "deterministic_columns", "run_tasks",
     "SweepPlan", "SweepSpec", "plan_sweep", "run_sweep", "summarize_sweep",
     "Budget", "Reproduction", "ReproductionResult", "reproduce",
 ]
+__getattr__, __dir__ = exports(__name__, {
+    ".executors": ["Executor"],
+    ".reproduction": ["Budget", "Reproduction", "ReproductionResult", "reproduce"],
+    ".store": ["ResultStore", "deterministic_columns"],
+    ".sweep": ["SweepPlan", "SweepSpec", "plan_sweep", "run_sweep", "summarize_sweep"],
+    ".tasks": ["run_tasks"],
+})

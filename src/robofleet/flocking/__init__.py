@@ -16,18 +16,7 @@ In every trace of this family, robot index 0 is the leader and indices ``1..m`` 
 followers.
 """
 
-from .basic import BasicAlgorithm
-from .hula_hoop import HulaHoopAlgorithm
-from .knowledge import ChiralityAlgorithm, MemoryAlgorithm, ObservableHeadingAlgorithm, SharedAxesAlgorithm
-from .leader import FlockingConditionWarning, LeaderCourse, check_conditions
-from .metrics import convergence_time, d_distance, delta_series, estimated_target, real_target
-from .model import Decision, LocalFrames, Snapshot, look
-from .patterns import Pattern, make_pattern, validate_points
-from .randomized import RandomizedAlgorithm, ranking
-from .schedulers import LookComputeMove, SchedulerSpec, run
-from .simulation import simulate
-from .spec import Spec
-from .stripe import StripeAlgorithm
+from ..core.lazy import exports
 
 __all__ = [
     "BasicAlgorithm", "StripeAlgorithm", "HulaHoopAlgorithm", "RandomizedAlgorithm", "ranking",
@@ -37,3 +26,17 @@ __all__ = [
     "Pattern", "make_pattern", "validate_points",
     "d_distance", "delta_series", "estimated_target", "real_target", "convergence_time",
 ]
+__getattr__, __dir__ = exports(__name__, {
+    ".basic": ["BasicAlgorithm"],
+    ".hula_hoop": ["HulaHoopAlgorithm"],
+    ".knowledge": ["ChiralityAlgorithm", "MemoryAlgorithm", "ObservableHeadingAlgorithm", "SharedAxesAlgorithm"],
+    ".leader": ["FlockingConditionWarning", "LeaderCourse", "check_conditions"],
+    ".metrics": ["convergence_time", "d_distance", "delta_series", "estimated_target", "real_target"],
+    ".model": ["Decision", "LocalFrames", "Snapshot", "look"],
+    ".patterns": ["Pattern", "make_pattern", "validate_points"],
+    ".randomized": ["RandomizedAlgorithm", "ranking"],
+    ".schedulers": ["LookComputeMove", "SchedulerSpec", "run"],
+    ".simulation": ["simulate"],
+    ".spec": ["Spec"],
+    ".stripe": ["StripeAlgorithm"],
+})

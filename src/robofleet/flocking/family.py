@@ -4,19 +4,15 @@
 from __future__ import annotations
 
 from ..core.family import Family
-from .guarantees import check
-from .metrics import RESULTS
-from .simulation import simulate
-from .spec import Spec
 
 FAMILY = Family(
     name="flocking",
     title="leader-following flocking of oblivious, anonymous, asynchronous robots (Look-Compute-Move)",
     paper="Gervasi & Prencipe 2001",
-    spec=Spec,
-    simulate=simulate,
-    check=check,
+    spec="robofleet.flocking.spec:Spec",
+    simulate="robofleet.flocking.simulation:simulate",
+    check="robofleet.flocking.guarantees:check",
     viz="robofleet.viz.flocking",
     budget="duration",
-    results=RESULTS,
+    results="robofleet.flocking.metrics:RESULTS",
 )

@@ -13,7 +13,8 @@ from ..core import catalogue
 from ..core.catalogue import Entry, names, resolve
 from ..core.catalogue import list as _catalogue_list
 from ..core.catalogue import path as _catalogue_path
-from .registry import DEFAULT_FAMILY, FAMILIES, family, family_of, load_scenario, read_scenario, simulate
+from ..core.lazy import exports
+from .registry import FAMILIES, family, family_of, load_scenario, simulate
 
 
 def list(kind: str = "scenarios") -> builtins.list[Entry]:  # noqa: A001 - public name of the catalogue
@@ -28,3 +29,4 @@ def path(name: str, kind: str = "scenarios") -> Path:
 
 __all__ = ["catalogue", "Entry", "FAMILIES", "DEFAULT_FAMILY", "family", "family_of", "list", "path", "names", "resolve",
            "load_scenario", "read_scenario", "simulate"]
+__getattr__, __dir__ = exports(__name__, {"robofleet.core.config": ["DEFAULT_FAMILY", "read_scenario"]})

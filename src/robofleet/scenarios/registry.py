@@ -7,32 +7,26 @@ the CLI, viz and the conformance suite read it. A fifth family is one more impor
 
 from __future__ import annotations
 
-from typing import Any, Mapping
-
-import numpy as np
+from typing import TYPE_CHECKING, Any, Mapping
 
 from ..avoidance.family import FAMILY as AVOIDANCE
 from ..coordination.family import FAMILY as COORDINATION
 from ..core.budget import check_run_size
-from ..core.config import (
-    DEFAULT_FAMILY,
-    SOURCE_KINDS,
-    ScenarioSource,
-    SpecModel,
-    given_spec,
-    read_scenario,
-    scenario_data,
-    spec_from_data,
-)
 from ..core.errors import ConfigError, InfeasibleError, ScenarioError, short_repr
 from ..core.family import Family
-from ..core.trace import Trace
+from ..core.lazy import exports
 from ..flocking.family import FAMILY as FLOCKING
 from ..search.family import FAMILY as SEARCH
+
+if TYPE_CHECKING:
+    from ..core.config import ScenarioSource, SpecModel
+    from ..core.trace import Trace
 
 FAMILIES: dict[str, Family] = {f.name: f for f in (AVOIDANCE, COORDINATION, FLOCKING, SEARCH)}
 
 __all__ = ["DEFAULT_FAMILY", "FAMILIES", "family", "family_of", "load_scenario", "read_scenario", "simulate"]
+# the scenario model's machinery (pydantic, numpy) is imported when a scenario is read, not with the table
+__getattr__, __dir__ = exports(__name__, {"robofleet.core.config": ["DEFAULT_FAMILY", "read_scenario"]})
 
 
 def family(name: str, source: str | None = None) -> Family:
@@ -71,6 +65,8 @@ def load_scenario(ref: ScenarioSource, overrides: Mapping[str, Any] | None = Non
     ConfigError
         When ``ref`` or ``overrides`` are not of a usable type.
     """
+    from ..core.config import DEFAULT_FAMILY, SOURCE_KINDS, SpecModel, given_spec, scenario_data, spec_from_data
+
     if isinstance(ref, SpecModel):
         name = getattr(ref, "family", None)
         if not isinstance(name, str) or name not in FAMILIES:
@@ -86,6 +82,11 @@ def simulate(scenario: ScenarioSource, seed: int | None = None, progress: bool =
     ``seed=None`` draws a seed and records it (``trace.seed``);
     ``simulate(spec, seed=trace.seed)`` reproduces every array bit for bit.
     """
+    import numpy as np
+
+    from ..core.config import SpecModel
+    from ..core.progress import compile_notice
+
     spec = scenario if isinstance(scenario, SpecModel) else load_scenario(scenario)
     fam = FAMILIES.get(getattr(spec, "family", None)) if isinstance(getattr(spec, "family", None), str) else None
     if fam is None or not isinstance(spec, fam.spec):
@@ -94,7 +95,8 @@ def simulate(scenario: ScenarioSource, seed: int | None = None, progress: bool =
         raise ConfigError(f"progress: expected True or False, received {short_repr(progress)}")
     check_run_size(spec.run_size(), spec.source)
     try:
-        return fam.simulate(spec, seed=seed, progress=bool(progress))
+        with compile_notice(bool(progress)):
+            return fam.simulate(spec, seed=seed, progress=bool(progress))
     except ScenarioError as exc:
         if exc.source is None and spec.source:  # found while running: name the scenario's file
             raise exc.with_source(spec.source) from None

@@ -18,12 +18,7 @@ trapezoidal translation), :mod:`.random_baseline` (RU), :mod:`.levy_flight` (LFP
 :mod:`robofleet.experiments.reproductions.search`.
 """
 
-from .assumptions import AssumptionReport, check_assumptions
-from .grids import Grid, GridKind, build_grid
-from .guarantees import check
-from .simulation import SearchOutcome, SearchProblem, run_search, run_search_batch, simulate
-from .spec import LABELS, Algorithm, Spec
-from .timing import MotionTiming
+from ..core.lazy import exports
 
 __all__ = [
     "LABELS",
@@ -42,3 +37,11 @@ __all__ = [
     "run_search_batch",
     "simulate",
 ]
+__getattr__, __dir__ = exports(__name__, {
+    ".assumptions": ["AssumptionReport", "check_assumptions"],
+    ".grids": ["Grid", "GridKind", "build_grid"],
+    ".guarantees": ["check"],
+    ".simulation": ["SearchOutcome", "SearchProblem", "run_search", "run_search_batch", "simulate"],
+    ".spec": ["LABELS", "Algorithm", "Spec"],
+    ".timing": ["MotionTiming"],
+})

@@ -12,6 +12,9 @@ from collections.abc import Callable
 
 from ...core.errors import ConfigError
 
+MAX_FRAMES = 1500
+"""Frames of a replay at most (longer runs show every k-th recorded state)."""
+
 
 def scene_builder(family: str) -> Callable:
     """``replay_scene(trace, max_frames=...)`` of a family: the function of the module

@@ -21,10 +21,9 @@ from ...core.errors import ConfigError
 from ...core.trace import Trace
 from ...core.workspace import Workspace
 from ..animation import frame_indices
+from . import MAX_FRAMES
 from .scene import Field, SceneEvents, Shape, frames_of_steps, legend_entry
 
-MAX_FRAMES = 1500
-"""Frames of a replay at most (longer runs show every k-th recorded state)."""
 ROBOT_FRAME_BUDGET = 4_000_000
 """Robot-frames embedded at most (10,000 robots: 400 frames)."""
 
