@@ -97,6 +97,45 @@ Threads
     robots waiting on it, for good), and two decisions never run on the shared flip
     state at once.
 
+Lifelong plans
+    :meth:`Supervisor.append_plan` gives a robot known at its goal further plan steps;
+    :meth:`Supervisor.cut_plan` ends a robot's plan at a step it may not yet have passed
+    (not below its furthest possible step ``reach``), where it then parks for good. Step
+    numbers never change (the plans keep their history), so ``known ≤ t ≤ reach`` carries
+    over. The coordination space is rebuilt; a region with the same cells as before keeps
+    its label, a part of a region (a cut) keeps that region's label, and every other region
+    (new cells of an appended plan, alone or joined to old ones) goes to the other robot
+    first: the appended robot yields. Then every region involving the robot in which the
+    robot passing first parks (it would have to pass its own goal step: its waiter waits
+    for ever) goes to the waiter instead, when the parked robot cannot have entered it
+    (``reach`` below its first step there) and the waiter does not park in it too; else the
+    change is refused with a one-line error naming both robots, and nothing changes.
+
+    Claim: the change keeps Eq. 1's invariant (every column ``≤ x_w`` of a region whose
+    label is the other robot ``a`` lies below ``x_a``), for the true progress. Proof. A
+    kept region: unchanged. A part of a region: its columns and rows are those of the
+    region, its profiles no higher. A region the appended robot ``w`` yields in: its cells
+    in ``w``'s columns ``≤ K_w`` (``w``'s old goal, its true step) are old cells, and the
+    invariant on them is checked against the other robot's *known* step before the change
+    is made (refused otherwise; it holds whenever those old cells were labelled the other
+    robot, as a robot reaching its goal was granted those columns only below the others'
+    known steps, which only grow); the other robot's side is inactive. A region given to
+    its waiter ``w``: the parked robot's columns ``≤ reach`` hold none of its cells, so
+    its invariant is empty, and ``w``'s side is inactive. ∎ The collision guarantee below
+    then holds after any sequence of changes, by the same induction. Deadlock: a kept or
+    partial region keeps its edges or weaker ones (an earlier step of the same robot); the
+    regions an appended robot yields in add edges only into its new segments, which have
+    no outgoing edges but its own path, so they close no cycle; a region given to its waiter
+    is a flip made through the cycle detector (refused if it closes a cycle), with the
+    deadlock check on. And no region keeps a robot waiting for a parked one (settled above),
+    nor can a later flip create one (a flip never lets a robot pass first in a region it
+    parks in). A robot with an appended plan is told ``go`` again by its next answer.
+
+    Costs and limits: rebuilding is that of the whole plan's coordination space, plus a
+    dense ``K_i × K_j`` grid for each pair with the changed robot; appends need known
+    disturbance probabilities (the new steps take the goal's); an appended path that ends
+    on another robot's remaining path, or passes a robot parked at its goal, is refused.
+
 Guarantees
     With a collision-free plan, robots that never pass their latest ``until`` and
     positions within the tolerance (above): no collision in the coordination space (Eq.
@@ -110,6 +149,7 @@ Guarantees
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import threading
 from collections.abc import Callable
@@ -118,16 +158,18 @@ from pathlib import Path
 from typing import TypeVar
 
 import numpy as np
+from scipy import ndimage
 
 from ..core import arguments
 from ..core.config import ScenarioSource, load_spec
-from ..core.errors import ConfigError, short_repr
+from ..core.errors import ConfigError, InfeasibleError, short_repr
 from ..core.geometry import point_segment_distance
 from ..core.rng import resolve_seed
 from .coordination_space import CoordinationSpace, build_coordination_space
 from .instance import prepare_instance
 from .label_flipping import KnownProbabilities
 from .plan_execution import Decision, ExecutionState, Method, PlanExecutor, Variant
+from .rmtrack import ActionRule
 from .segment_graph import Resolution
 from .simulation import make_executor
 from .spec import Spec
@@ -381,6 +423,104 @@ class Supervisor:
         blocked = (self.execution_state.labels[side // 2] == other) & (top >= self.known[other])
         return min(until, int(col[blocked].min()) - 1) if blocked.any() else until
 
+    # -- lifelong plans -----------------------------------------------------------------------------
+    @locked
+    def append_plan(self, robot: int, path: object) -> int:
+        """Give robot ``robot``, known at its goal, a further plan: ``path`` ``(m + 1, 2)``
+        whose first point is its goal (within ``position_tolerance``; the goal itself is
+        kept) becomes plan steps ``K + 1 … K + m``. The robot yields in every collision
+        region of the new part (see *Lifelong plans* in the module docstring). Returns the
+        robot's new goal step; a one-line error when the robot is not known at its goal,
+        the path is malformed, or the robot would have to wait for ever.
+        """
+        i = self.robot_index(robot)
+        goal = int(self.traj.lengths[i])
+        if self.known[i] < goal:
+            raise ConfigError(f"append_plan: expected robot {i} known at its goal step {goal}, received it known at step {int(self.known[i])}")
+        steps = appended_steps(path, self.traj.positions[i, goal], self.tolerance, i)
+        if not isinstance(self.executor.times, KnownProbabilities):
+            raise ConfigError("append_plan: expected a supervisor with known disturbance probabilities, received a learned estimate")
+        width = max(self.traj.positions.shape[1], goal + len(steps) + 1)
+        positions, probability = padded(self.traj.positions, width), padded(self.executor.probability, width)
+        positions[i, goal + 1:] = steps[np.minimum(np.arange(width - goal - 1), len(steps) - 1)]
+        lengths = self.traj.lengths.copy()
+        lengths[i] = goal + len(steps)
+        self._change_plan(i, positions, lengths, probability, "append_plan")
+        self.execution_state.arrival[i] = -1
+        return int(lengths[i])
+
+    @locked
+    def cut_plan(self, robot: int, step: int) -> int:
+        """End robot ``robot``'s plan at ``step`` (a new obstacle beyond it): it parks at
+        that step's point for good. ``step`` may not be below the furthest step the robot
+        may have reached (its granted ``until``). Returns the new goal step; a one-line
+        error when the step is out of range or the parked robot would keep another robot
+        waiting for ever (see *Lifelong plans* in the module docstring).
+        """
+        i = self.robot_index(robot)
+        goal, reached = int(self.traj.lengths[i]), int(max(self.reach[i], self.known[i]))
+        if isinstance(step, bool) or not isinstance(step, (int, np.integer)) or not reached <= step <= goal:
+            raise ConfigError(f"cut_plan: expected a step of robot {i}'s plan from {reached} (the furthest it may have reached) "
+                              f"to {goal}, received {short_repr(step)}")
+        if step < goal:
+            positions = self.traj.positions.copy()
+            positions[i, step + 1:] = positions[i, step]
+            lengths = self.traj.lengths.copy()
+            lengths[i] = step
+            self._change_plan(i, positions, lengths, self.executor.probability, "cut_plan")
+        return int(step)
+
+    def _change_plan(self, i: int, positions: np.ndarray, lengths: np.ndarray, probability: np.ndarray, what: str) -> None:
+        """Rebuild the coordination space for robot ``i``'s new plan, carry the labels over,
+        settle the regions a parked robot would block for ever, then switch to it all
+        (nothing changes when a check refuses)."""
+        traj = Trajectories(positions, lengths, self.traj.radius, self.traj.dt)
+        space = build_coordination_space(traj, check_plan=False)
+        labels, tried, changed = carried_labels(self.traj, self.space, self.execution_state, traj, space, i)
+        self._check_yielding(i, space, labels, changed, what)
+        times = self.executor.times if probability is self.executor.probability else KnownProbabilities(probability, traj.dt)
+        executor = dataclasses.replace(self.executor, traj=traj, space=space, probability=probability, times=times, layout=None)
+        try:
+            detector = executor._detector(labels)
+        except InfeasibleError:
+            raise InfeasibleError(f"{what}: expected robot {i}'s new plan to keep the segment graph acyclic, received a cycle") from None
+        self._settle_parked(i, space, labels, detector, what)
+        self.executor, self.traj, self.space = executor, traj, space
+        self.execution_state = dataclasses.replace(self.execution_state, labels=labels, tried=tried, detector=detector,
+                                                   rule=ActionRule(space))
+        self._entries = ProfileEntries.of(space)
+        self._first_sides = 2 * np.arange(space.n_obstacles)
+        self._decision = None
+
+    def _check_yielding(self, i: int, space: CoordinationSpace, labels: np.ndarray, changed: np.ndarray, what: str) -> None:
+        """Eq. 1's invariant for robot ``i`` in every changed region it yields in: each of
+        its columns up to its furthest possible step lies below the other robot's known step."""
+        e = ProfileEntries.of(space)
+        rows = slice(e.start[i], e.start[i + 1])
+        side, col, top = e.side[rows], e.col[rows], e.top[rows]
+        other = space.side_other[side]
+        bad = changed[side // 2] & (labels[side // 2] == other) & (col <= self.reach[i]) & (top >= self.known[other])
+        if bad.any():
+            k = int(np.flatnonzero(bad)[0])
+            raise InfeasibleError(f"{what}: expected robot {int(other[k])} past robot {i}'s step {int(col[k])}, "
+                                  f"received it known at step {int(self.known[other[k]])} within 2r of it")
+
+    def _settle_parked(self, i: int, space: CoordinationSpace, labels: np.ndarray, detector, what: str) -> None:
+        """Every region of robot ``i`` whose passing order would keep the waiter waiting
+        for ever (the robot it waits for parks inside) goes to the waiter instead, when
+        the parked robot cannot have entered it, the waiter does not park in it too and
+        (check on) the segment graph stays acyclic; else a one-line error."""
+        for side in parked_sides(space, labels, i).tolist():
+            obstacle, waiter, parked = side // 2, int(space.side_waiter[side]), int(space.side_other[side])
+            first_step = int(space.side_other_lo[side])
+            if self.reach[parked] >= first_step or space.side_hi[side] >= space.lengths[waiter]:
+                raise InfeasibleError(f"{what}: expected robot {parked}'s plan to end clear of robot {waiter}'s remaining plan, "
+                                      f"received robot {waiter} waiting for ever from its step {int(space.side_lo[side])}")
+            if detector is not None and not detector.try_flip(obstacle, waiter, self.known):
+                raise InfeasibleError(f"{what}: expected robot {waiter} to pass robot {parked}'s parked position first without a "
+                                      f"cycle in the segment graph, received a cycle")
+            labels[obstacle] = waiter
+
     # -- what happened ----------------------------------------------------------------------------
     @property
     @locked
@@ -480,3 +620,80 @@ def distances_to_steps(window: np.ndarray, p: np.ndarray, holding: bool) -> np.n
         return to_points
     to_segments = point_segment_distance(p, window[:-1], window[1:])
     return np.append(to_segments, to_points[-1])
+
+
+def appended_steps(path: object, goal: np.ndarray, tolerance: float, i: int) -> np.ndarray:
+    """The steps ``(m, 2)`` a path appended at robot ``i``'s goal adds, or a one-line error."""
+    try:
+        p = np.asarray(path, dtype=float)
+    except (TypeError, ValueError):
+        p = np.full(1, np.nan)
+    if p.ndim != 2 or p.shape[1:] != (2,) or len(p) < 2 or not np.all(np.isfinite(p)):
+        raise ConfigError(f"append_plan: expected robot {i}'s path, an (m + 1, 2) array of finite points with m ≥ 1, received {short_repr(path)}")
+    gap = float(np.linalg.norm(p[0] - goal))
+    if gap > tolerance * (1 + ROUNDING) + ROUNDING:
+        raise ConfigError(f"append_plan: expected robot {i}'s path to start at its goal {goal.tolist()} (within {tolerance:g}), "
+                          f"received a start {p[0].tolist()} at distance {gap:.3g}")
+    return p[1:]
+
+
+def padded(table: np.ndarray, width: int) -> np.ndarray:
+    """``(n, width, …)`` copy of ``table`` whose added columns repeat each row's last entry."""
+    extra = np.repeat(table[:, -1:], width - table.shape[1], axis=1)
+    return np.concatenate([table, extra], axis=1)
+
+
+def carried_labels(old_traj: Trajectories, old: CoordinationSpace, state: ExecutionState, new_traj: Trajectories,
+                   new: CoordinationSpace, robot: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Labels, tried flags and a *changed* mask for the regions of the new plan, in which only
+    ``robot``'s plan changed. A region with the same cells as an old one keeps its label
+    and flag; a part of one old region (a cut) keeps that region's label; any other (new
+    cells of an appended plan) goes to the other robot first: ``robot`` yields."""
+    labels = np.where(new.robot_i == robot, new.robot_j, new.robot_i)
+    tried, changed = np.zeros(new.n_obstacles, bool), np.ones(new.n_obstacles, bool)
+    old_keys = representatives(old)
+    old_of = {key: k for k, key in enumerate(old_keys)}
+    new_keys = representatives(new)
+    cut = new_traj.lengths[robot] < old_traj.lengths[robot]
+    grids: dict[tuple[int, int], np.ndarray] = {}
+    for k, key in enumerate(new_keys):
+        i, j = key[0], key[1]
+        if robot not in (i, j):
+            parents = [old_of[key]]
+        else:
+            if (i, j) not in grids:
+                grids[(i, j)] = ndimage.label(contact_grid(old_traj if cut else new_traj, i, j))[0]
+            grid = grids[(i, j)]
+            parents = [o for o, old_key in enumerate(old_keys) if old_key[:2] == (i, j)
+                       and grid[old_key[2:]] == grid[key[2:]]]
+        if len(parents) == 1 and (cut or new.n_cells[k] == old.n_cells[parents[0]]):
+            labels[k], tried[k] = state.labels[parents[0]], state.tried[parents[0]]
+            changed[k] = new.n_cells[k] != old.n_cells[parents[0]]
+    return labels, tried, changed
+
+
+def representatives(space: CoordinationSpace) -> list[tuple[int, int, int, int]]:
+    """Per region: its pair and one of its cells, ``(i, j, k_i, k_j)`` (its first column's top cell)."""
+    first = 2 * np.arange(space.n_obstacles)
+    return list(zip(space.robot_i.tolist(), space.robot_j.tolist(), space.side_lo[first].tolist(),
+                    space.profile[space.side_offset[first]].tolist()))
+
+
+def contact_grid(traj: Trajectories, i: int, j: int) -> np.ndarray:
+    """``(K_i + 1, K_j + 1)`` cells where robots ``i`` and ``j`` are closer than ``2r`` (the
+    same comparison as :func:`~.coordination_space.build_coordination_space`)."""
+    a, b = traj.positions[i, : traj.lengths[i] + 1], traj.positions[j, : traj.lengths[j] + 1]
+    dx, dy = a[:, None, 0] - b[None, :, 0], a[:, None, 1] - b[None, :, 1]
+    reach = 2.0 * traj.radius
+    return dx * dx + dy * dy < reach * reach
+
+
+def parked_sides(space: CoordinationSpace, labels: np.ndarray, robot: int) -> np.ndarray:
+    """Active sides involving ``robot`` whose waiter would wait for ever: the robot it
+    waits for would have to pass its own goal step (it parks inside the region)."""
+    if space.n_obstacles == 0:
+        return np.zeros(0, np.intp)
+    active = labels[space.side_obstacle] == space.side_other
+    involved = (space.side_waiter == robot) | (space.side_other == robot)
+    highest = np.maximum.reduceat(space.profile, space.side_offset)
+    return np.flatnonzero(active & involved & (highest >= space.lengths[space.side_other]))

@@ -1,0 +1,152 @@
+"""Lifelong plans through the online supervisor: plans appended for robots that have
+finished and remaining plans cut at random times, in closed loops whose robots report
+noisy positions and progress (late, repeated, older than what is known) and whose
+answers arrive late or not at all. No two robots ever come closer than ``2r``, known
+progress stays a lower bound, no run stalls with the deadlock check on, and every
+refused change is a one-line error that leaves the supervisor as it was."""
+
+from __future__ import annotations
+
+import heapq
+
+import numpy as np
+import pytest
+from coordination_instances import line
+from supervisor_loops import contacts_at, error_in_disc, executor_for, wandering_instance
+
+from robofleet.coordination import Supervisor
+from robofleet.coordination.trajectories import make_trajectories
+from robofleet.core.errors import ConfigError, InfeasibleError
+
+TOLERANCE = 0.2
+
+
+def new_leg(rng: np.random.Generator, start: np.ndarray) -> np.ndarray:
+    """A path from ``start`` to a random point of the instance's disc (a wait now and then)."""
+    goal = 4.5 * np.sqrt(rng.random()) * np.array([np.cos(a := rng.uniform(0, 2 * np.pi)), np.sin(a)])
+    path = line(tuple(start), tuple(goal), rng.uniform(0.15, 0.35))
+    if rng.random() < 0.3:
+        path = np.vstack([path[:1]] * int(rng.integers(1, 5)) + [path])
+    return path
+
+
+def lifelong_loop(seed: int, method: str, n: int = 4, appends: int = 6, max_delay: int = 3) -> dict:
+    """One closed loop; returns its counts (ticks, appends, cuts, refusals, contacts, overestimates, stalled)."""
+    rng = np.random.default_rng(seed)
+    traj = wandering_instance(rng, n, TOLERANCE)
+    sup = Supervisor(traj, executor=executor_for(traj, method), position_tolerance=TOLERANCE, lookahead=1 + seed % 4)
+    x, part, allowed = np.zeros(n, np.intp), np.zeros(n), np.zeros(n, np.intp)
+    floor, held = np.zeros(n, int), np.zeros(n, bool)
+    inbox, serial = [], 0
+    counts = dict(ticks=0, appends=0, cuts=0, refused=0, contacts=0, overestimates=0, stalled=False)
+    left = appends
+    for tick in range(6000):
+        counts["ticks"] = tick
+        for i in rng.permutation(n).tolist():
+            if rng.random() < 0.3:
+                continue
+            path, goal = sup.traj.positions[i], int(sup.traj.lengths[i])
+            hold = bool(part[i] == 0 and rng.random() < 0.5)
+            if rng.random() < 0.5:
+                here = path[x[i]] + part[i] * (path[min(x[i] + 1, goal)] - path[x[i]])
+                sup.report(i, position=here + error_in_disc(rng, TOLERANCE, path[min(goal, x[i] + 3)] - here), holding=hold)
+            else:
+                sup.report(i, progress=int(max(0, x[i] - rng.integers(0, 3))), holding=False)
+                if hold:
+                    sup.report(i, progress=int(x[i]), holding=True)
+            serial += 1
+            if hold:
+                floor[i], held[i], allowed[i] = serial, True, x[i]
+            answer = sup.answer(i)
+            if answer.action == "done" and left > 0 and rng.random() < 0.5:
+                counts["appends"] += try_change(sup, lambda: sup.append_plan(i, new_leg(rng, path[goal])), counts)
+                left -= 1
+            elif rng.random() < 0.02:
+                step = int(min(sup.traj.lengths[i], max(sup.reach[i], sup.known[i]) + rng.integers(0, 6)))
+                counts["cuts"] += try_change(sup, lambda: sup.cut_plan(i, step), counts)
+            elif rng.random() < 0.9:
+                heapq.heappush(inbox, (tick + int(rng.integers(0, max_delay + 1)), serial, i, answer.until))
+        while inbox and inbox[0][0] <= tick:
+            _, sent, i, until = heapq.heappop(inbox)
+            if sent >= floor[i]:
+                held[i], allowed[i] = False, max(allowed[i], until)
+        lengths = sup.traj.lengths
+        probability = sup.executor.probability[np.arange(n), x]
+        moving = ~held & ((part > 0) | (x < np.minimum(allowed, lengths))) & (rng.random(n) >= probability)
+        part = np.where(moving, part + rng.uniform(0.3, 1.0, n), part)
+        arrived = part >= 1
+        x, part = x + arrived, np.where(arrived, 0.0, part)
+        counts["contacts"] += contacts_at(sup.traj, x)
+        counts["overestimates"] += int(np.count_nonzero(sup.known > x))
+        if left == 0 and np.all(x >= sup.traj.lengths):
+            return counts
+    counts["stalled"] = True
+    return counts
+
+
+def try_change(sup: Supervisor, change, counts: dict) -> int:
+    """Apply a plan change; a refusal must be a one-line error that changes nothing."""
+    before = (sup.traj.lengths.copy(), sup.labels, sup.space.n_obstacles)
+    try:
+        change()
+        return 1
+    except (ConfigError, InfeasibleError) as error:
+        assert "\n" not in str(error)
+        after = (sup.traj.lengths, sup.labels, sup.space.n_obstacles)
+        assert np.array_equal(before[0], after[0]) and np.array_equal(before[1], after[1]) and before[2] == after[2]
+        counts["refused"] += 1
+        return 0
+
+
+@pytest.mark.parametrize("method", ["rmtrack", "tff", "tfa"])
+def test_lifelong_closed_loops_never_collide_nor_stall(method):
+    totals = {}
+    bad = []
+    for seed in range(8):
+        counts = lifelong_loop(seed, method)
+        if counts["contacts"] or counts["overestimates"] or counts["stalled"]:
+            bad.append((seed, counts))
+        for key, value in counts.items():
+            totals[key] = totals.get(key, 0) + int(value)
+    print(method, totals)
+    assert bad == []
+    assert totals["appends"] >= 10 and totals["cuts"] >= 3
+
+
+def two_robots_done() -> Supervisor:
+    traj = make_trajectories([line((0, 0), (3, 0), 0.3), line((0, 3), (3, 3), 0.3)], 0.5, 0.1)
+    sup = Supervisor(traj, method="tff")
+    sup.report(1, progress=int(traj.lengths[1]), holding=True)
+    return sup
+
+
+@pytest.mark.parametrize("change, message", [
+    (lambda s: s.append_plan(0, [[0, 0], [1, 0]]), "expected robot 0 known at its goal step 10, received it known at step 0"),
+    (lambda s: s.append_plan(1, [[3, 3]]), "expected robot 1's path, an (m + 1, 2) array"),
+    (lambda s: s.append_plan(1, "abc"), "expected robot 1's path"),
+    (lambda s: s.append_plan(1, [[5, 5], [6, 6]]), "expected robot 1's path to start at its goal [3.0, 3.0]"),
+    (lambda s: s.append_plan(1, line((3, 3), (3, 0.2), 0.3)), "expected robot 0's plan to end clear of robot 1's remaining plan"),
+    (lambda s: s.cut_plan(1, 11), "cut_plan: expected a step of robot 1's plan from 10 (the furthest it may have reached) to 10"),
+    (lambda s: s.cut_plan(0, -1), "cut_plan: expected a step of robot 0's plan from 0"),
+    (lambda s: s.append_plan(5, [[0, 0], [1, 1]]), "robot: expected an index in 0..1"),
+])
+def test_bad_changes_are_one_line_errors_that_change_nothing(change, message):
+    sup = two_robots_done()
+    counts = {"refused": 0}
+    with pytest.raises((ConfigError, InfeasibleError)) as error:
+        change(sup)
+    assert message in str(error.value) and "\n" not in str(error.value)
+    assert try_change(sup, lambda: change(sup), counts) == 0 and counts["refused"] == 1
+
+
+def test_a_cut_that_would_park_a_robot_in_another_robots_way_is_refused_once_it_may_be_inside():
+    walker, crosser = line((0, -3), (0, 3), 0.3), line((-3, 0), (3, 0), 0.3)
+    traj = make_trajectories([np.vstack([walker[:1]] * 15 + [walker]), crosser], 0.5, 0.1)
+    sup = Supervisor(traj, method="rmtrack", lookahead=1)
+    for _ in range(9):  # the crosser, first in the crossing, walks up to it
+        sup.report(1, progress=sup.answer(1).until, holding=True)
+    with pytest.raises(InfeasibleError, match="expected robot 1's plan to end clear of robot 0's remaining plan"):
+        sup.cut_plan(1, 10)  # step 10 is within 2r of the walker's line, and the crosser may be in the region
+    fresh = Supervisor(traj, method="rmtrack", lookahead=1)
+    assert fresh.cut_plan(1, 10) == 10  # not yet inside: the walker goes first instead
+    assert fresh.labels.tolist() == [0]
