@@ -102,45 +102,77 @@ Lifelong plans
     :meth:`Supervisor.cut_plan` ends a robot's plan at a step it may not yet have passed
     (not below its furthest possible step ``reach``), where it then parks for good. Step
     numbers never change (the plans keep their history), so ``known ≤ t ≤ reach`` carries
-    over. The coordination space is rebuilt; a region with the same cells as before keeps
-    its label, a part of a region (a cut) keeps that region's label, and every other region
-    (new cells of an appended plan, alone or joined to old ones) goes to the other robot
-    first: the appended robot yields. Then every region involving the robot in which the
-    robot passing first parks (it would have to pass its own goal step: its waiter waits
-    for ever) goes to the waiter instead, when the parked robot cannot have entered it
-    (``reach`` below its first step there) and the waiter does not park in it too; else the
-    change is refused with a one-line error naming both robots, and nothing changes.
+    over. The coordination space is rebuilt and the labels are carried over: a region
+    with the same cells as before keeps its label, a part of a region (a cut) keeps that
+    region's label, and every other region (new cells of an appended plan, alone or joined
+    to old ones) starts with the other robot first: the appended robot yields. Then the
+    change *settles* the regions of the changed robot that it changed or in which the
+    robot passing first parks (its waiter would wait for ever), one at a time: each keeps
+    its label if that order is *admissible*, else goes to the other robot if that one is,
+    else the change is refused with a one-line error giving both reasons, and nothing
+    changes. A robot ``ℓ`` passing first in region ``o`` with waiter ``w`` is admissible
+    when (a) ``ℓ`` does not park inside ``o``; (b) every column of ``w`` up to its furthest
+    possible step ``reach_w`` lies below ``ℓ``'s known step (Eq. 1's invariant holds
+    already); (c) a flip: the flip keeps the active segment graph acyclic — the
+    incremental cycle test of :mod:`.segment_graph`, exact resolution, on the known
+    progress, whatever the method and whether its deadlock check is on.
 
-    Claim: the change keeps Eq. 1's invariant (every column ``≤ x_w`` of a region whose
-    label is the other robot ``a`` lies below ``x_a``), for the true progress. Proof. A
-    kept region: unchanged. A part of a region: its columns and rows are those of the
-    region, its profiles no higher. A region the appended robot ``w`` yields in: its cells
-    in ``w``'s columns ``≤ K_w`` (``w``'s old goal, its true step) are old cells, and the
-    invariant on them is checked against the other robot's *known* step before the change
-    is made (refused otherwise; it holds whenever those old cells were labelled the other
-    robot, as a robot reaching its goal was granted those columns only below the others'
-    known steps, which only grow); the other robot's side is inactive. A region given to
-    its waiter ``w``: the parked robot's columns ``≤ reach`` hold none of its cells, so
-    its invariant is empty, and ``w``'s side is inactive. ∎ The collision guarantee below
-    then holds after any sequence of changes, by the same induction. Deadlock: a kept or
-    partial region keeps its edges or weaker ones (an earlier step of the same robot); the
-    regions an appended robot yields in add edges only into its new segments, which have
-    no outgoing edges but its own path, so they close no cycle; a region given to its waiter
-    is a flip made through the cycle detector (refused if it closes a cycle), with the
-    deadlock check on. And no region keeps a robot waiting for a parked one (settled above),
-    nor can a later flip create one (a flip never lets a robot pass first in a region it
-    parks in). A robot with an appended plan is told ``go`` again by its next answer.
+    Claim 1 (no collision): the change keeps Eq. 1's invariant (every column ``≤ x_w`` of
+    a region whose label is the other robot ``a`` lies below ``x_a``) for the true
+    progress. Proof. A kept region: unchanged. A region not settled that is part of a
+    region (a cut): its columns and rows are those of the region, its profiles no higher.
+    A settled region: by (b), since ``x_w ≤ reach_w`` and ``known_ℓ ≤ x_ℓ``; the label
+    robot's own side is inactive. ∎ The collision guarantee below then holds after any
+    sequence of changes, by the same induction.
 
-    Costs and limits: rebuilding is that of the whole plan's coordination space, plus a
-    dense ``K_i × K_j`` grid for each pair with the changed robot; appends need known
-    disturbance probabilities (the new steps take the goal's); an appended path that ends
-    on another robot's remaining path, or passes a robot parked at its goal, is refused.
+    Claim 2 (no cycle): the active segment graph (vertices not entered at the known
+    progress) stays acyclic through a change, for every method. Proof. Before the change
+    it is acyclic (induction; Guarantees below). The carried labels: a kept region keeps
+    its edges; a part of a region keeps edges from the same or an earlier vertex of the
+    same robot, so a cycle through one would give a cycle through the old edge (follow
+    the robot's path from the earlier vertex to the old one); a region the appended robot
+    ``w`` yields in adds edges into ``w``'s columns only, and those not entered are new
+    segments (``w`` is known at its old goal), whose only outgoing edges are ``w``'s own
+    path: the edges of a kept region whose label is ``w`` leave from ``w``'s step
+    ``top + 1`` after its highest cell, at most its old goal, since ``w`` parks in no
+    region it passes first (Claim 3 before the change) — a vertex ``w`` has entered. So
+    no cycle passes through them.
+    The segment graph is built on these labels and the change is refused if it has a
+    cycle anyway. Then every relabelling the change makes is a flip kept only by (c). ∎
+    Without (c) a change can close a cycle: robot ``w`` appended past the goal of a robot
+    ``p`` that is still on its way must go first there, and if ``p`` passes first in a
+    region with a robot ``b`` after entering ``w``'s region, while ``w`` yields to ``b``
+    before clearing it, the three wait for each other for ever (the seeded closed loops of
+    the tests find such changes within a few runs).
+
+    Claim 3 (nobody waits for a parked robot): after a change, no active region's robot
+    passing first parks inside it. Proof: the regions of the changed robot in which one
+    would are settled, a settled region's label never parks (a), regions of other robots
+    keep their plans and labels, and no later flip gives a region to a robot that parks
+    in it (:func:`~.label_flipping.flip_eligible`; BTPG and ``optimal`` keep such regions
+    fixed). ∎ With Claims 2 and 3, Theorems 1–2 apply to the new plan: the deadlock
+    guarantee below carries over. A robot with an appended plan is told ``go`` again by
+    its next answer.
+
+    After a change, the method's own flips are checked against the new plan's segment
+    graph too: TFF and TFA with the deadlock check, BTPG (its offline classification holds
+    for the plan it was made on, so every later first-come flip goes through the cycle
+    test) and ``optimal`` (its decisions restart on the new plan with this cycle test).
+
+    Costs and limits: rebuilding is that of the whole plan's coordination space and its
+    segment graph, plus a dense ``K_i × K_j`` grid for each pair with the changed robot;
+    appends need known disturbance probabilities (the new steps take the goal's); an
+    appended path that ends on another robot's remaining path, or passes a robot parked
+    at its goal, is refused, and so is any change whose regions have no admissible order
+    (a caller may then try another path or another step).
 
 Guarantees
     With a collision-free plan, robots that never pass their latest ``until`` and
     positions within the tolerance (above): no collision in the coordination space (Eq.
-    1's invariant), and, with the deadlock check on, every flip kept leaves the active
-    segment graph acyclic (Theorems 1–2 with the exact resolution). As soon as every
+    1's invariant), and, for RMTRACK (no flips), TFF and TFA with the deadlock check on,
+    BTPG and ``optimal`` (by construction), the active segment graph stays acyclic —
+    every flip kept and every plan change (*Lifelong plans*) leaves it so — hence no
+    deadlock (Theorems 1–2 with the exact resolution). As soon as every
     robot's latest report has arrived, the answers are those of the simulation in the
     same state (the tests replay recorded simulations through it with reports late, out
     of order and missing for a while). A robot that stops reporting can only make others
@@ -170,7 +202,8 @@ from .instance import prepare_instance
 from .label_flipping import KnownProbabilities
 from .plan_execution import Decision, ExecutionState, Method, PlanExecutor, Variant
 from .rmtrack import ActionRule
-from .segment_graph import Resolution
+from .optimal import OptimalOrders
+from .segment_graph import IncrementalCycleDetector, Resolution, build_segment_layout
 from .simulation import make_executor
 from .spec import Spec
 from .trajectories import Trajectories, load_trajectories
@@ -226,12 +259,13 @@ class Answer:
 
 
 class Supervisor:
-    """Online RMTRACK (+TFF/TFA, + the segment-graph check) over a fixed plan.
+    """Online RMTRACK (+TFF/TFA, + the segment-graph check; or BTPG, ``optimal``) over a
+    plan that may grow and shrink (:meth:`append_plan`, :meth:`cut_plan`).
 
     Parameters
     ----------
     trajectories: the plan.
-    method: ``"rmtrack"``, ``"tff"`` or ``"tfa"``.
+    method: ``"rmtrack"``, ``"tff"``, ``"tfa"``, ``"btpg"`` or ``"optimal"``.
     deadlock_check: refuse flips that close a cycle in the segment graph.
     probability: disturbance probability used by the flip tests' expected times, one
         number or ``(n, K_max + 1)`` per robot and plan step, in ``[0, 1)``.
@@ -472,54 +506,73 @@ class Supervisor:
 
     def _change_plan(self, i: int, positions: np.ndarray, lengths: np.ndarray, probability: np.ndarray, what: str) -> None:
         """Rebuild the coordination space for robot ``i``'s new plan, carry the labels over,
-        settle the regions a parked robot would block for ever, then switch to it all
-        (nothing changes when a check refuses)."""
+        choose the passing orders the change leaves open, then switch to it all (nothing
+        changes when a check refuses; see *Lifelong plans* in the module docstring)."""
         traj = Trajectories(positions, lengths, self.traj.radius, self.traj.dt)
         space = build_coordination_space(traj, check_plan=False)
         labels, tried, changed = carried_labels(self.traj, self.space, self.execution_state, traj, space, i)
-        self._check_yielding(i, space, labels, changed, what)
-        times = self.executor.times if probability is self.executor.probability else KnownProbabilities(probability, traj.dt)
-        executor = dataclasses.replace(self.executor, traj=traj, space=space, probability=probability, times=times, layout=None)
+        layout = build_segment_layout(space, Resolution.EXACT)
         try:
-            detector = executor._detector(labels)
+            detector = IncrementalCycleDetector(layout, labels, self.known)
         except InfeasibleError:
             raise InfeasibleError(f"{what}: expected robot {i}'s new plan to keep the segment graph acyclic, received a cycle") from None
-        self._settle_parked(i, space, labels, detector, what)
+        self._settle_orders(space, labels, settled_regions(space, labels, changed, i), detector, what)
+        times = self.executor.times if probability is self.executor.probability else KnownProbabilities(probability, traj.dt)
+        exact = self.executor.resolution is Resolution.EXACT
+        executor = dataclasses.replace(self.executor, traj=traj, space=space, probability=probability, times=times,
+                                       layout=layout if exact else None)
+        orders = None
+        if executor.variant.method is Method.OPTIMAL:
+            orders = OptimalOrders(space, layout, executor.optimal, traj.dt, detector=detector)
         self.executor, self.traj, self.space = executor, traj, space
-        self.execution_state = dataclasses.replace(self.execution_state, labels=labels, tried=tried, detector=detector,
-                                                   rule=ActionRule(space))
+        self.execution_state = dataclasses.replace(self.execution_state, labels=labels, tried=tried, rule=ActionRule(space),
+                                                   detector=flip_detector(executor, detector), orders=orders)
         self._entries = ProfileEntries.of(space)
         self._first_sides = 2 * np.arange(space.n_obstacles)
         self._decision = None
 
-    def _check_yielding(self, i: int, space: CoordinationSpace, labels: np.ndarray, changed: np.ndarray, what: str) -> None:
-        """Eq. 1's invariant for robot ``i`` in every changed region it yields in: each of
-        its columns up to its furthest possible step lies below the other robot's known step."""
-        e = ProfileEntries.of(space)
-        rows = slice(e.start[i], e.start[i + 1])
-        side, col, top = e.side[rows], e.col[rows], e.top[rows]
-        other = space.side_other[side]
-        bad = changed[side // 2] & (labels[side // 2] == other) & (col <= self.reach[i]) & (top >= self.known[other])
-        if bad.any():
-            k = int(np.flatnonzero(bad)[0])
-            raise InfeasibleError(f"{what}: expected robot {int(other[k])} past robot {i}'s step {int(col[k])}, "
-                                  f"received it known at step {int(self.known[other[k]])} within 2r of it")
+    def _settle_orders(self, space: CoordinationSpace, labels: np.ndarray, regions: np.ndarray,
+                       detector: IncrementalCycleDetector, what: str) -> None:
+        """Give each of ``regions`` (in index order) its carried label if that order is
+        *admissible*, else the other robot; ``labels`` and ``detector`` follow every flip
+        made. Admissible (:meth:`_inadmissible`): the robot passing first does not park
+        inside, the waiter's granted columns keep Eq. 1's invariant and the active
+        segment graph stays acyclic. A region with no admissible order refuses the change
+        with a one-line error giving both reasons."""
+        for obstacle in regions.tolist():
+            carried = int(labels[obstacle])
+            other = int(space.robot_i[obstacle] + space.robot_j[obstacle]) - carried
+            reasons = []
+            for label in (carried, other):
+                reason = self._inadmissible(space, labels, obstacle, label, detector)
+                if reason is None:
+                    labels[obstacle] = label
+                    break
+                reasons.append(reason)
+            else:
+                raise InfeasibleError(f"{what}: {reasons[0]}; with robot {other} first: {reasons[1]}")
 
-    def _settle_parked(self, i: int, space: CoordinationSpace, labels: np.ndarray, detector, what: str) -> None:
-        """Every region of robot ``i`` whose passing order would keep the waiter waiting
-        for ever (the robot it waits for parks inside) goes to the waiter instead, when
-        the parked robot cannot have entered it, the waiter does not park in it too and
-        (check on) the segment graph stays acyclic; else a one-line error."""
-        for side in parked_sides(space, labels, i).tolist():
-            obstacle, waiter, parked = side // 2, int(space.side_waiter[side]), int(space.side_other[side])
-            first_step = int(space.side_other_lo[side])
-            if self.reach[parked] >= first_step or space.side_hi[side] >= space.lengths[waiter]:
-                raise InfeasibleError(f"{what}: expected robot {parked}'s plan to end clear of robot {waiter}'s remaining plan, "
-                                      f"received robot {waiter} waiting for ever from its step {int(space.side_lo[side])}")
-            if detector is not None and not detector.try_flip(obstacle, waiter, self.known):
-                raise InfeasibleError(f"{what}: expected robot {waiter} to pass robot {parked}'s parked position first without a "
-                                      f"cycle in the segment graph, received a cycle")
-            labels[obstacle] = waiter
+    def _inadmissible(self, space: CoordinationSpace, labels: np.ndarray, obstacle: int, label: int,
+                      detector: IncrementalCycleDetector) -> str | None:
+        """Why robot ``label`` may not pass first in ``obstacle`` now (``None``: it may, and
+        the detector holds that order). The robot passing first parks inside: its waiter
+        would wait for ever. A granted column of the waiter (``≤ reach``) whose highest cell
+        is not below the label robot's known step: Eq. 1's invariant could be broken
+        already. A flip that closes a cycle in the active segment graph (known progress)."""
+        side = side_with_other(space, obstacle, label)
+        waiter = int(space.side_waiter[side])
+        top = space.side_profile(side)
+        if top.max() >= space.lengths[label]:
+            return (f"expected robot {label}'s plan to end clear of robot {waiter}'s remaining plan, "
+                    f"received robot {waiter} waiting for ever from its step {int(space.side_lo[side])}")
+        columns = np.arange(space.side_lo[side], space.side_hi[side] + 1)
+        crossing = (columns <= self.reach[waiter]) & (top >= self.known[label])
+        if crossing.any():
+            return (f"expected robot {label} past robot {waiter}'s step {int(columns[crossing][0])}, "
+                    f"received it known at step {int(self.known[label])} within 2r of it")
+        if labels[obstacle] != label and not detector.try_flip(obstacle, label, self.known):
+            return f"expected robot {label} to pass robot {waiter} first without a cycle in the segment graph, received a cycle"
+        return None
 
     # -- what happened ----------------------------------------------------------------------------
     @property
@@ -688,12 +741,35 @@ def contact_grid(traj: Trajectories, i: int, j: int) -> np.ndarray:
     return dx * dx + dy * dy < reach * reach
 
 
-def parked_sides(space: CoordinationSpace, labels: np.ndarray, robot: int) -> np.ndarray:
-    """Active sides involving ``robot`` whose waiter would wait for ever: the robot it
-    waits for would have to pass its own goal step (it parks inside the region)."""
+def settled_regions(space: CoordinationSpace, labels: np.ndarray, changed: np.ndarray, robot: int) -> np.ndarray:
+    """The regions of ``robot`` whose passing order a change must choose: those it changed,
+    and those whose robot passing first parks inside (it would have to pass its own goal
+    step: its waiter would wait for ever)."""
     if space.n_obstacles == 0:
         return np.zeros(0, np.intp)
     active = labels[space.side_obstacle] == space.side_other
-    involved = (space.side_waiter == robot) | (space.side_other == robot)
     highest = np.maximum.reduceat(space.profile, space.side_offset)
-    return np.flatnonzero(active & involved & (highest >= space.lengths[space.side_other]))
+    parked = np.zeros(space.n_obstacles, bool)
+    parked[space.side_obstacle[active & (highest >= space.lengths[space.side_other])]] = True
+    involved = (space.robot_i == robot) | (space.robot_j == robot)
+    return np.flatnonzero(involved & (changed | parked))
+
+
+def side_with_other(space: CoordinationSpace, obstacle: int, label: int) -> int:
+    """The side of ``obstacle`` that is active when ``label`` passes first (its waiter is the other robot)."""
+    first = 2 * obstacle
+    return first if space.side_other[first] == label else first + 1
+
+
+def flip_detector(executor: PlanExecutor, detector: IncrementalCycleDetector) -> IncrementalCycleDetector | None:
+    """The cycle test the executor's own flips go through on a changed plan: ``detector``
+    (the exact segment graph of the new plan, built on the known progress) for TFF and TFA
+    with the deadlock check, and for BTPG (its offline classification holds for the plan
+    it was made on only: after a change each first-come flip is checked instead); a
+    detector of the method's resolution for TFF and TFA at ``definition3``; none for
+    RMTRACK (no flips), the unchecked variants and ``optimal`` (its own detector:
+    :class:`~.optimal.OptimalOrders`)."""
+    method, checked = executor.variant.method, executor.variant.deadlock_check
+    if method is Method.BTPG or (checked and method in (Method.TFF, Method.TFA) and executor.resolution is Resolution.EXACT):
+        return detector
+    return executor._detector(detector.labels) if method in (Method.TFF, Method.TFA) else None
