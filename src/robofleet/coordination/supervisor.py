@@ -462,10 +462,12 @@ class Supervisor:
     def append_plan(self, robot: int, path: object) -> int:
         """Give robot ``robot``, known at its goal, a further plan: ``path`` ``(m + 1, 2)``
         whose first point is its goal (within ``position_tolerance``; the goal itself is
-        kept) becomes plan steps ``K + 1 … K + m``. The robot yields in every collision
-        region of the new part (see *Lifelong plans* in the module docstring). Returns the
-        robot's new goal step; a one-line error when the robot is not known at its goal,
-        the path is malformed, or the robot would have to wait for ever.
+        kept) becomes plan steps ``K + 1 … K + m``. The robot yields in the collision
+        regions of the new part where that order is admissible, else passes first (see
+        *Lifelong plans* in the module docstring). Returns the robot's new goal step; a
+        one-line error when the robot is not known at its goal, the path is malformed, or
+        a region has no admissible order (a robot would wait for ever, or the segment
+        graph would close a cycle).
         """
         i = self.robot_index(robot)
         goal = int(self.traj.lengths[i])
@@ -488,8 +490,9 @@ class Supervisor:
         """End robot ``robot``'s plan at ``step`` (a new obstacle beyond it): it parks at
         that step's point for good. ``step`` may not be below the furthest step the robot
         may have reached (its granted ``until``). Returns the new goal step; a one-line
-        error when the step is out of range or the parked robot would keep another robot
-        waiting for ever (see *Lifelong plans* in the module docstring).
+        error when the step is out of range or a region the cut changes has no admissible
+        order (the parked robot would keep another waiting for ever, or the segment graph
+        would close a cycle; see *Lifelong plans* in the module docstring).
         """
         i = self.robot_index(robot)
         goal, reached = int(self.traj.lengths[i]), int(max(self.reach[i], self.known[i]))
