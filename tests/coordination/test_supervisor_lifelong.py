@@ -197,3 +197,51 @@ def test_a_cut_that_would_park_a_robot_in_another_robots_way_is_refused_once_it_
     fresh = Supervisor(traj, method="rmtrack", lookahead=1)
     assert fresh.cut_plan(1, 10) == 10  # not yet inside: the walker goes first instead
     assert fresh.labels.tolist() == [0]
+
+
+def three_robots(parker_goal: tuple[float, float], third: np.ndarray) -> Supervisor:
+    """Robot 0 walking along ``y = 0`` from ``x = −6`` to ``parker_goal``, robot 1 crossing
+    its path after it at ``x = −1.2`` (after waiting in a start queue) and then turning
+    right along ``y = 3``, and robot 2 on the path ``third``; robots 0 and 1 have gone
+    eight steps, robot 2 none."""
+    parker = line((-6, 0), parker_goal, 0.3)
+    crosser = np.vstack([line((-1.2, -5), (-1.2, 3), 0.3), line((-1.2, 3), (4, 3), 0.3)[1:]])
+    traj = make_trajectories([parker, np.vstack([crosser[:1]] * 12 + [crosser]), third], 0.5, 0.1)
+    sup = Supervisor(traj, method="rmtrack", lookahead=1)
+    for _ in range(8):
+        for i in (0, 1):
+            sup.report(i, progress=sup.answer(i).until, holding=True)
+    return sup
+
+
+def acyclic(sup: Supervisor) -> bool:
+    return len(find_cycle_nodes(build_segment_layout(sup.space), sup.execution_state.labels, sup.known)) == 0
+
+
+def test_an_append_that_would_close_a_cycle_of_waiting_robots_is_reordered():
+    # robot 2, at its goal above the others, gets a leg down x = 0.5: across robot 1's path
+    # at y = 3, where it would yield, then past robot 0's goal at the origin, where it must
+    # pass first (robot 0 parks there). With those orders 2 waits for 1, 1 for 0 (still in
+    # their crossing when it stops short of robot 2's path) and 0 for 2, for ever
+    sup = three_robots((0, 0), np.array([[0.5, 6.0]]))
+    assert sup.append_plan(2, line((0.5, 6), (0.5, -5), 0.3)) == 37
+    assert sup.labels.tolist() == [0, 2, 2] and acyclic(sup)  # robot 2 passes first in both new regions
+    for _ in range(200):
+        for i in range(3):
+            answer = sup.answer(i)
+            if answer.go:
+                sup.report(i, progress=answer.until, holding=True)
+    assert [sup.answer(i).action for i in range(3)] == ["done"] * 3
+
+
+def test_a_cut_whose_only_order_closes_a_cycle_is_refused_and_changes_nothing():
+    # the same three paths as plans from the start (robot 0 walking on to x = 6, robot 2
+    # coming down after robot 1 has passed): cutting robot 0 at the origin parks it in robot
+    # 2's way, and letting robot 2 pass first there closes the cycle 2 → 0 → 1 → 2
+    faller = line((0.5, 6), (0.5, -5), 0.3)
+    sup = three_robots((6, 0), np.vstack([faller[:1]] * 45 + [faller]))
+    counts = {"refused": 0}
+    assert try_change(sup, lambda: sup.cut_plan(0, 20), counts) == 0
+    with pytest.raises(InfeasibleError, match="with robot 2 first: expected robot 2 to pass robot 0 first without a cycle"):
+        sup.cut_plan(0, 20)
+    assert acyclic(sup) and sup.cut_plan(0, 40) == 40  # its own goal: nothing to settle

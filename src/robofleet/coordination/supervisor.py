@@ -115,7 +115,13 @@ Lifelong plans
     possible step ``reach_w`` lies below ``ℓ``'s known step (Eq. 1's invariant holds
     already); (c) a flip: the flip keeps the active segment graph acyclic — the
     incremental cycle test of :mod:`.segment_graph`, exact resolution, on the known
-    progress, whatever the method and whether its deadlock check is on.
+    progress, whatever the method and whether its deadlock check is on. One reordering
+    before a refusal: when the appended robot ``w`` must pass first in a region (the other
+    robot parks there) and only (c) fails, ``w`` passes first also in the regions it was
+    to yield in and enters before clearing that one, earliest first, each flip made only
+    when admissible, until the region's flip passes (c); if it never does, these flips are
+    undone (flipping back restores an acyclic graph, which (c) accepts) and the change is
+    refused.
 
     Claim 1 (no collision): the change keeps Eq. 1's invariant (every column ``≤ x_w`` of
     a region whose label is the other robot ``a`` lies below ``x_a``) for the true
@@ -138,12 +144,14 @@ Lifelong plans
     region it passes first (Claim 3 before the change) — a vertex ``w`` has entered. So
     no cycle passes through them.
     The segment graph is built on these labels and the change is refused if it has a
-    cycle anyway. Then every relabelling the change makes is a flip kept only by (c). ∎
+    cycle anyway. Then every relabelling the change makes, reorderings included, is a
+    flip kept only by (c). ∎
     Without (c) a change can close a cycle: robot ``w`` appended past the goal of a robot
     ``p`` that is still on its way must go first there, and if ``p`` passes first in a
     region with a robot ``b`` after entering ``w``'s region, while ``w`` yields to ``b``
     before clearing it, the three wait for each other for ever (the seeded closed loops of
-    the tests find such changes within a few runs).
+    the tests find such changes within a few runs). The reordering then lets ``w`` pass
+    first where it met ``b`` too, if ``b`` cannot be there yet.
 
     Claim 3 (nobody waits for a parked robot): after a change, no active region's robot
     passing first parks inside it. Proof: the regions of the changed robot in which one
@@ -519,7 +527,7 @@ class Supervisor:
             detector = IncrementalCycleDetector(layout, labels, self.known)
         except InfeasibleError:
             raise InfeasibleError(f"{what}: expected robot {i}'s new plan to keep the segment graph acyclic, received a cycle") from None
-        self._settle_orders(space, labels, settled_regions(space, labels, changed, i), detector, what)
+        self._settle_orders(i, space, labels, settled_regions(space, labels, changed, i), detector, what)
         times = self.executor.times if probability is self.executor.probability else KnownProbabilities(probability, traj.dt)
         exact = self.executor.resolution is Resolution.EXACT
         executor = dataclasses.replace(self.executor, traj=traj, space=space, probability=probability, times=times,
@@ -534,34 +542,35 @@ class Supervisor:
         self._first_sides = 2 * np.arange(space.n_obstacles)
         self._decision = None
 
-    def _settle_orders(self, space: CoordinationSpace, labels: np.ndarray, regions: np.ndarray,
+    def _settle_orders(self, i: int, space: CoordinationSpace, labels: np.ndarray, regions: np.ndarray,
                        detector: IncrementalCycleDetector, what: str) -> None:
         """Give each of ``regions`` (in index order) its carried label if that order is
         *admissible*, else the other robot; ``labels`` and ``detector`` follow every flip
-        made. Admissible (:meth:`_inadmissible`): the robot passing first does not park
-        inside, the waiter's granted columns keep Eq. 1's invariant and the active
-        segment graph stays acyclic. A region with no admissible order refuses the change
-        with a one-line error giving both reasons."""
+        made. Admissible: the order is not broken (:meth:`_order_broken`) and the active
+        segment graph stays acyclic. When an appended robot ``i`` may pass first in a
+        region but for a cycle, :meth:`_pass_first_earlier` tries reordering the regions
+        before it. A region with no admissible order refuses the change with a one-line
+        error giving both reasons."""
+        appended = bool(space.lengths[i] > self.traj.lengths[i])
         for obstacle in regions.tolist():
             carried = int(labels[obstacle])
             other = int(space.robot_i[obstacle] + space.robot_j[obstacle]) - carried
             reasons = []
             for label in (carried, other):
-                reason = self._inadmissible(space, labels, obstacle, label, detector)
+                reason = self._order_broken(space, obstacle, label) or self._cycle_closed(space, labels, obstacle, label, detector)
                 if reason is None:
                     labels[obstacle] = label
                     break
                 reasons.append(reason)
             else:
-                raise InfeasibleError(f"{what}: {reasons[0]}; with robot {other} first: {reasons[1]}")
+                if not (appended and self._pass_first_earlier(i, space, labels, regions, obstacle, detector)):
+                    raise InfeasibleError(f"{what}: {reasons[0]}; with robot {other} first: {reasons[1]}")
 
-    def _inadmissible(self, space: CoordinationSpace, labels: np.ndarray, obstacle: int, label: int,
-                      detector: IncrementalCycleDetector) -> str | None:
-        """Why robot ``label`` may not pass first in ``obstacle`` now (``None``: it may, and
-        the detector holds that order). The robot passing first parks inside: its waiter
-        would wait for ever. A granted column of the waiter (``≤ reach``) whose highest cell
-        is not below the label robot's known step: Eq. 1's invariant could be broken
-        already. A flip that closes a cycle in the active segment graph (known progress)."""
+    def _order_broken(self, space: CoordinationSpace, obstacle: int, label: int) -> str | None:
+        """Why robot ``label`` may not pass first in ``obstacle`` whatever the other orders
+        (``None``: it may). The robot passing first parks inside: its waiter would wait for
+        ever. A granted column of the waiter (``≤ reach``) whose highest cell is not below
+        the label robot's known step: Eq. 1's invariant could be broken already."""
         side = side_with_other(space, obstacle, label)
         waiter = int(space.side_waiter[side])
         top = space.side_profile(side)
@@ -573,9 +582,44 @@ class Supervisor:
         if crossing.any():
             return (f"expected robot {label} past robot {waiter}'s step {int(columns[crossing][0])}, "
                     f"received it known at step {int(self.known[label])} within 2r of it")
-        if labels[obstacle] != label and not detector.try_flip(obstacle, label, self.known):
-            return f"expected robot {label} to pass robot {waiter} first without a cycle in the segment graph, received a cycle"
         return None
+
+    def _cycle_closed(self, space: CoordinationSpace, labels: np.ndarray, obstacle: int, label: int,
+                      detector: IncrementalCycleDetector) -> str | None:
+        """Make ``label`` pass first in ``obstacle`` in ``detector`` unless that closes a cycle
+        in the active segment graph (known progress); the reason when it does."""
+        if labels[obstacle] == label or detector.try_flip(obstacle, label, self.known):
+            return None
+        waiter = int(space.robot_i[obstacle] + space.robot_j[obstacle]) - label
+        return f"expected robot {label} to pass robot {waiter} first without a cycle in the segment graph, received a cycle"
+
+    def _pass_first_earlier(self, i: int, space: CoordinationSpace, labels: np.ndarray, regions: np.ndarray,
+                            obstacle: int, detector: IncrementalCycleDetector) -> bool:
+        """Let the appended robot ``i`` pass first in ``obstacle``, whose other order is
+        broken, by letting it pass first also in the regions of ``regions`` it yields in and
+        enters before it clears ``obstacle`` — earliest first, each flip admissible — until
+        ``obstacle``'s flip closes no cycle. Returns whether it does; if not, those flips
+        are undone (flipping back restores an acyclic graph, which the test accepts)."""
+        if self._order_broken(space, obstacle, i) is not None:
+            return False
+        own = lambda o: side_with_other(space, o, int(space.robot_i[o] + space.robot_j[o]) - i)  # noqa: E731 - i waits
+        clear = int(space.side_hi[own(obstacle)])
+        earlier = [o for o in regions.tolist() if labels[o] != i and space.side_lo[own(o)] <= clear and o != obstacle]
+        made = []
+        for o in sorted(earlier, key=lambda o: int(space.side_lo[own(o)])):
+            previous = int(labels[o])
+            if self._order_broken(space, o, i) or self._cycle_closed(space, labels, o, i, detector):
+                continue
+            labels[o] = i
+            made.append((o, previous))
+            if self._cycle_closed(space, labels, obstacle, i, detector) is None:
+                labels[obstacle] = i
+                return True
+        for o, previous in reversed(made):
+            restored = detector.try_flip(o, previous, self.known)
+            assert restored, "flipping back to an acyclic graph"
+            labels[o] = previous
+        return False
 
     # -- what happened ----------------------------------------------------------------------------
     @property
