@@ -119,8 +119,7 @@ Lifelong plans
     before a refusal: when the appended robot ``w`` must pass first in a region (the other
     robot parks there) and only (c) fails, ``w`` passes first also in the regions it was
     to yield in and enters before clearing that one, earliest first, each flip made only
-    when admissible, until the region's flip passes (c); if it never does, these flips are
-    undone (flipping back restores an acyclic graph, which (c) accepts) and the change is
+    when admissible, until the region's flip passes (c); if it never does, the change is
     refused.
 
     Claim 1 (no collision): the change keeps Eq. 1's invariant (every column ``≤ x_w`` of
@@ -598,27 +597,20 @@ class Supervisor:
         """Let the appended robot ``i`` pass first in ``obstacle``, whose other order is
         broken, by letting it pass first also in the regions of ``regions`` it yields in and
         enters before it clears ``obstacle`` — earliest first, each flip admissible — until
-        ``obstacle``'s flip closes no cycle. Returns whether it does; if not, those flips
-        are undone (flipping back restores an acyclic graph, which the test accepts)."""
+        ``obstacle``'s flip closes no cycle. Returns whether it does (if not, the change is
+        refused and these flips, made on the change's own labels and detector, are dropped)."""
         if self._order_broken(space, obstacle, i) is not None:
             return False
         own = lambda o: side_with_other(space, o, int(space.robot_i[o] + space.robot_j[o]) - i)  # noqa: E731 - i waits
         clear = int(space.side_hi[own(obstacle)])
         earlier = [o for o in regions.tolist() if labels[o] != i and space.side_lo[own(o)] <= clear and o != obstacle]
-        made = []
         for o in sorted(earlier, key=lambda o: int(space.side_lo[own(o)])):
-            previous = int(labels[o])
             if self._order_broken(space, o, i) or self._cycle_closed(space, labels, o, i, detector):
                 continue
             labels[o] = i
-            made.append((o, previous))
             if self._cycle_closed(space, labels, obstacle, i, detector) is None:
                 labels[obstacle] = i
                 return True
-        for o, previous in reversed(made):
-            restored = detector.try_flip(o, previous, self.known)
-            assert restored, "flipping back to an acyclic graph"
-            labels[o] = previous
         return False
 
     # -- what happened ----------------------------------------------------------------------------
