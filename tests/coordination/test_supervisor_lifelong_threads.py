@@ -7,8 +7,8 @@ Changes race with reports and answers: a change read from a stale snapshot is re
 
 Checked at every move, under the world's lock: no two robots closer than ``2r`` at their
 true steps (on the plan of that moment), known progress never past the true one. After
-every change attempt, under the supervisor's lock: the active segment graph (exact
-resolution, on the known progress) holds no cycle. No run stalls: every thread goes
+every change attempt, under the supervisor's lock, and at a stall: the active segment
+graph (exact resolution, on the known progress) holds no cycle. No run stalls: every thread goes
 quiet only when all robots are at their goals, and once the changes stop every run ends
 within a round budget. Every refused change is a one-line error; half the changes (a
 seeded coin) are made holding the supervisor's lock, and their refusals must leave
@@ -177,6 +177,8 @@ def lifelong_threaded_run(seed: int, method: str, n: int = 4, appends: int = 5, 
         thread.start()
     for thread in threads:
         thread.join()
+    if world.stalled:  # is the stall a cycle of waiting robots?
+        watch.check(sup)
     return dict(counts, contacts=world.contacts, overestimates=world.overestimates, cycles=watch.cycles,
                 stalled=world.stalled, error=world.error, rounds_after_changes=world.rounds_after_changes)
 
