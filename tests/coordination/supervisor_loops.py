@@ -27,6 +27,7 @@ from robofleet.coordination import Supervisor
 from robofleet.coordination.coordination_space import build_coordination_space
 from robofleet.coordination.label_flipping import KnownProbabilities
 from robofleet.coordination.plan_execution import Method, PlanExecutor, Variant
+from robofleet.coordination.segment_graph import IncrementalCycleDetector, build_segment_layout
 from robofleet.coordination.trajectories import Trajectories, first_plan_collision, make_trajectories
 from robofleet.core.errors import InfeasibleError
 from robofleet.core.geometry import point_segment_distance
@@ -67,7 +68,9 @@ def wandering_instance(rng: np.random.Generator, n_robots: int, tolerance: float
     """A collision-free plan of :func:`wandering_path` paths from a circle (radius 4.5)
     to roughly opposite points through its centre, each robot's start and goal at least
     ``2.1 r`` from the other robots' paths, with the smallest start delays (random
-    priority) that keep it collision-free; at least ``n − 1`` obstacles."""
+    priority) that keep it collision-free, and whose plan labels leave the exact segment
+    graph acyclic (a plan RMTRACK can execute: a plan whose steps pass diagonally between
+    two regions is not); at least ``n − 1`` obstacles."""
     for _ in range(max_tries):
         angle = rng.permutation(n_robots) * 2 * np.pi / n_robots + rng.uniform(0, 0.5, n_robots)
         goal_angle = angle + np.pi + rng.uniform(-0.8, 0.8, n_robots)
@@ -81,10 +84,12 @@ def wandering_instance(rng: np.random.Generator, n_robots: int, tolerance: float
             continue
         traj = make_trajectories(delayed, radius, 0.1)
         try:
-            if build_coordination_space(traj).n_obstacles >= n_robots - 1:
-                return traj
+            space = build_coordination_space(traj)
+            IncrementalCycleDetector(build_segment_layout(space), space.initial_labels)
         except InfeasibleError:
             continue
+        if space.n_obstacles >= n_robots - 1:
+            return traj
     raise RuntimeError("no wandering instance found")
 
 

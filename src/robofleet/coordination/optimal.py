@@ -705,14 +705,18 @@ class OptimalOrders:
         horizon, node budget and decision period.
     dt:
         seconds per step.
+    detector:
+        the cycle test of the current labels (default: a new one on the plan labels; the
+        supervisor passes its own after a plan change).
     """
 
-    def __init__(self, space: CoordinationSpace, layout: SegmentLayout, settings: OptimalSettings, dt: float):
+    def __init__(self, space: CoordinationSpace, layout: SegmentLayout, settings: OptimalSettings, dt: float,
+                 detector: IncrementalCycleDetector | None = None):
         self.space, self.settings, self.dt = space, settings, float(dt)
         self.graph = OrderGraph.of(layout, space)
         self.fixed = ~statically_switchable(space)
         self.called = np.zeros(space.n_obstacles, dtype=bool)
-        self.detector = IncrementalCycleDetector(layout, space.initial_labels)
+        self.detector = IncrementalCycleDetector(layout, space.initial_labels) if detector is None else detector
         self._times: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
 
     def due(self, t: int) -> bool:

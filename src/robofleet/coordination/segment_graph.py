@@ -191,9 +191,15 @@ class IncrementalCycleDetector:
     ``try_flip`` replaces an obstacle's edges by those of the other label and keeps the
     flip only if no cycle appears; the search visits only the vertices whose topological
     index lies between the new edge's head and tail (the affected region).
+
+    ``progress`` (optional, the robots' steps): the order is built on the active subgraph
+    only (the vertices entered come first, in index order), for a graph whose entered
+    part may hold cycles that no longer matter; every later ``try_flip`` must then pass a
+    progress at least as far. With the exact resolution a cycle among the vertices the
+    order covers is an error (:class:`~robofleet.core.errors.InfeasibleError`).
     """
 
-    def __init__(self, layout: SegmentLayout, labels: np.ndarray):
+    def __init__(self, layout: SegmentLayout, labels: np.ndarray, progress: np.ndarray | None = None):
         self.layout = layout
         self.labels = np.array(labels, copy=True)
         v = layout.n_nodes
@@ -208,9 +214,10 @@ class IncrementalCycleDetector:
         self.visited_last = 0
         # topological index of every vertex (a list: fast scalar access); None while the
         # literal Definition 3 graph of the plan is cyclic (see the module docstring)
-        self.order = self._topological_order(src, dst)
+        self.order = self._topological_order(src, dst, progress)
         if self.order is None and layout.resolution is Resolution.EXACT:
-            stuck = find_cycle_nodes(layout, self.labels, self._nothing_entered())[:6].tolist()
+            now = self._nothing_entered() if progress is None else np.asarray(progress)
+            stuck = find_cycle_nodes(layout, self.labels, now)[:6].tolist()
             raise InfeasibleError(f"trajectories: expected plan labels without a cycle, received a cycle among segments {stuck}")
 
     def _nothing_entered(self) -> np.ndarray:

@@ -97,11 +97,89 @@ Threads
     robots waiting on it, for good), and two decisions never run on the shared flip
     state at once.
 
+Lifelong plans
+    :meth:`Supervisor.append_plan` gives a robot known at its goal further plan steps;
+    :meth:`Supervisor.cut_plan` ends a robot's plan at a step it may not yet have passed
+    (not below its furthest possible step ``reach``), where it then parks for good. Step
+    numbers never change (the plans keep their history), so ``known ≤ t ≤ reach`` carries
+    over. The coordination space is rebuilt and the labels are carried over: a region
+    with the same cells as before keeps its label, a part of a region (a cut) keeps that
+    region's label, and every other region (new cells of an appended plan, alone or joined
+    to old ones) starts with the other robot first: the appended robot yields. Then the
+    change *settles* the regions of the changed robot that it changed or in which the
+    robot passing first parks (its waiter would wait for ever), one at a time: each keeps
+    its label if that order is *admissible*, else goes to the other robot if that one is,
+    else the change is refused with a one-line error giving both reasons, and nothing
+    changes. A robot ``ℓ`` passing first in region ``o`` with waiter ``w`` is admissible
+    when (a) ``ℓ`` does not park inside ``o``; (b) every column of ``w`` up to its furthest
+    possible step ``reach_w`` lies below ``ℓ``'s known step (Eq. 1's invariant holds
+    already); (c) a flip: the flip keeps the active segment graph acyclic — the
+    incremental cycle test of :mod:`.segment_graph`, exact resolution, on the known
+    progress, whatever the method and whether its deadlock check is on. One reordering
+    before a refusal: when the appended robot ``w`` must pass first in a region (the other
+    robot parks there) and only (c) fails, ``w`` passes first also in the regions it was
+    to yield in and enters before clearing that one, earliest first, each flip made only
+    when admissible, until the region's flip passes (c); if it never does, the change is
+    refused.
+
+    Claim 1 (no collision): the change keeps Eq. 1's invariant (every column ``≤ x_w`` of
+    a region whose label is the other robot ``a`` lies below ``x_a``) for the true
+    progress. Proof. A kept region: unchanged. A region not settled that is part of a
+    region (a cut): its columns and rows are those of the region, its profiles no higher.
+    A settled region: by (b), since ``x_w ≤ reach_w`` and ``known_ℓ ≤ x_ℓ``; the label
+    robot's own side is inactive. ∎ The collision guarantee below then holds after any
+    sequence of changes, by the same induction.
+
+    Claim 2 (no cycle): the active segment graph (vertices not entered at the known
+    progress) stays acyclic through a change, for every method. Proof. Before the change
+    it is acyclic (induction; Guarantees below). The carried labels: a kept region keeps
+    its edges; a part of a region keeps edges from the same or an earlier vertex of the
+    same robot, so a cycle through one would give a cycle through the old edge (follow
+    the robot's path from the earlier vertex to the old one); a region the appended robot
+    ``w`` yields in adds edges into ``w``'s columns only, and those not entered are new
+    segments (``w`` is known at its old goal), whose only outgoing edges are ``w``'s own
+    path: the edges of a kept region whose label is ``w`` leave from ``w``'s step
+    ``top + 1`` after its highest cell, at most its old goal, since ``w`` parks in no
+    region it passes first (Claim 3 before the change) — a vertex ``w`` has entered. So
+    no cycle passes through them.
+    The segment graph is built on these labels and the change is refused if it has a
+    cycle anyway. Then every relabelling the change makes, reorderings included, is a
+    flip kept only by (c). ∎
+    Without (c) a change can close a cycle: robot ``w`` appended past the goal of a robot
+    ``p`` that is still on its way must go first there, and if ``p`` passes first in a
+    region with a robot ``b`` after entering ``w``'s region, while ``w`` yields to ``b``
+    before clearing it, the three wait for each other for ever (the seeded closed loops of
+    the tests find such changes within a few runs). The reordering then lets ``w`` pass
+    first where it met ``b`` too, if ``b`` cannot be there yet.
+
+    Claim 3 (nobody waits for a parked robot): after a change, no active region's robot
+    passing first parks inside it. Proof: the regions of the changed robot in which one
+    would are settled, a settled region's label never parks (a), regions of other robots
+    keep their plans and labels, and no later flip gives a region to a robot that parks
+    in it (:func:`~.label_flipping.flip_eligible`; BTPG and ``optimal`` keep such regions
+    fixed). ∎ With Claims 2 and 3, Theorems 1–2 apply to the new plan: the deadlock
+    guarantee below carries over. A robot with an appended plan is told ``go`` again by
+    its next answer.
+
+    After a change, the method's own flips are checked against the new plan's segment
+    graph too: TFF and TFA with the deadlock check, BTPG (its offline classification holds
+    for the plan it was made on, so every later first-come flip goes through the cycle
+    test) and ``optimal`` (its decisions restart on the new plan with this cycle test).
+
+    Costs and limits: rebuilding is that of the whole plan's coordination space and its
+    segment graph, plus a dense ``K_i × K_j`` grid for each pair with the changed robot;
+    appends need known disturbance probabilities (the new steps take the goal's); an
+    appended path that ends on another robot's remaining path, or passes a robot parked
+    at its goal, is refused, and so is any change whose regions have no admissible order
+    (a caller may then try another path or another step).
+
 Guarantees
     With a collision-free plan, robots that never pass their latest ``until`` and
     positions within the tolerance (above): no collision in the coordination space (Eq.
-    1's invariant), and, with the deadlock check on, every flip kept leaves the active
-    segment graph acyclic (Theorems 1–2 with the exact resolution). As soon as every
+    1's invariant), and, for RMTRACK (no flips), TFF and TFA with the deadlock check on,
+    BTPG and ``optimal`` (by construction), the active segment graph stays acyclic —
+    every flip kept and every plan change (*Lifelong plans*) leaves it so — hence no
+    deadlock (Theorems 1–2 with the exact resolution). As soon as every
     robot's latest report has arrived, the answers are those of the simulation in the
     same state (the tests replay recorded simulations through it with reports late, out
     of order and missing for a while). A robot that stops reporting can only make others
@@ -110,6 +188,7 @@ Guarantees
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import threading
 from collections.abc import Callable
@@ -118,17 +197,20 @@ from pathlib import Path
 from typing import TypeVar
 
 import numpy as np
+from scipy import ndimage
 
 from ..core import arguments
 from ..core.config import ScenarioSource, load_spec
-from ..core.errors import ConfigError, short_repr
+from ..core.errors import ConfigError, InfeasibleError, short_repr
 from ..core.geometry import point_segment_distance
 from ..core.rng import resolve_seed
 from .coordination_space import CoordinationSpace, build_coordination_space
 from .instance import prepare_instance
 from .label_flipping import KnownProbabilities
 from .plan_execution import Decision, ExecutionState, Method, PlanExecutor, Variant
-from .segment_graph import Resolution
+from .rmtrack import ActionRule
+from .optimal import OptimalOrders
+from .segment_graph import IncrementalCycleDetector, Resolution, build_segment_layout
 from .simulation import make_executor
 from .spec import Spec
 from .trajectories import Trajectories, load_trajectories
@@ -184,12 +266,13 @@ class Answer:
 
 
 class Supervisor:
-    """Online RMTRACK (+TFF/TFA, + the segment-graph check) over a fixed plan.
+    """Online RMTRACK (+TFF/TFA, + the segment-graph check; or BTPG, ``optimal``) over a
+    plan that may grow and shrink (:meth:`append_plan`, :meth:`cut_plan`).
 
     Parameters
     ----------
     trajectories: the plan.
-    method: ``"rmtrack"``, ``"tff"`` or ``"tfa"``.
+    method: ``"rmtrack"``, ``"tff"``, ``"tfa"``, ``"btpg"`` or ``"optimal"``.
     deadlock_check: refuse flips that close a cycle in the segment graph.
     probability: disturbance probability used by the flip tests' expected times, one
         number or ``(n, K_max + 1)`` per robot and plan step, in ``[0, 1)``.
@@ -381,6 +464,155 @@ class Supervisor:
         blocked = (self.execution_state.labels[side // 2] == other) & (top >= self.known[other])
         return min(until, int(col[blocked].min()) - 1) if blocked.any() else until
 
+    # -- lifelong plans -----------------------------------------------------------------------------
+    @locked
+    def append_plan(self, robot: int, path: object) -> int:
+        """Give robot ``robot``, known at its goal, a further plan: ``path`` ``(m + 1, 2)``
+        whose first point is its goal (within ``position_tolerance``; the goal itself is
+        kept) becomes plan steps ``K + 1 … K + m``. The robot yields in the collision
+        regions of the new part where that order is admissible, else passes first (see
+        *Lifelong plans* in the module docstring). Returns the robot's new goal step; a
+        one-line error when the robot is not known at its goal, the path is malformed, or
+        a region has no admissible order (a robot would wait for ever, or the segment
+        graph would close a cycle).
+        """
+        i = self.robot_index(robot)
+        goal = int(self.traj.lengths[i])
+        if self.known[i] < goal:
+            raise ConfigError(f"append_plan: expected robot {i} known at its goal step {goal}, received it known at step {int(self.known[i])}")
+        steps = appended_steps(path, self.traj.positions[i, goal], self.tolerance, i)
+        if not isinstance(self.executor.times, KnownProbabilities):
+            raise ConfigError("append_plan: expected a supervisor with known disturbance probabilities, received a learned estimate")
+        width = max(self.traj.positions.shape[1], goal + len(steps) + 1)
+        positions, probability = padded(self.traj.positions, width), padded(self.executor.probability, width)
+        positions[i, goal + 1:] = steps[np.minimum(np.arange(width - goal - 1), len(steps) - 1)]
+        lengths = self.traj.lengths.copy()
+        lengths[i] = goal + len(steps)
+        self._change_plan(i, positions, lengths, probability, "append_plan")
+        self.execution_state.arrival[i] = -1
+        return int(lengths[i])
+
+    @locked
+    def cut_plan(self, robot: int, step: int) -> int:
+        """End robot ``robot``'s plan at ``step`` (a new obstacle beyond it): it parks at
+        that step's point for good. ``step`` may not be below the furthest step the robot
+        may have reached (its granted ``until``). Returns the new goal step; a one-line
+        error when the step is out of range or a region the cut changes has no admissible
+        order (the parked robot would keep another waiting for ever, or the segment graph
+        would close a cycle; see *Lifelong plans* in the module docstring).
+        """
+        i = self.robot_index(robot)
+        goal, reached = int(self.traj.lengths[i]), int(max(self.reach[i], self.known[i]))
+        if isinstance(step, bool) or not isinstance(step, (int, np.integer)) or not reached <= step <= goal:
+            raise ConfigError(f"cut_plan: expected a step of robot {i}'s plan from {reached} (the furthest it may have reached) "
+                              f"to {goal}, received {short_repr(step)}")
+        if step < goal:
+            positions = self.traj.positions.copy()
+            positions[i, step + 1:] = positions[i, step]
+            lengths = self.traj.lengths.copy()
+            lengths[i] = step
+            self._change_plan(i, positions, lengths, self.executor.probability, "cut_plan")
+        return int(step)
+
+    def _change_plan(self, i: int, positions: np.ndarray, lengths: np.ndarray, probability: np.ndarray, what: str) -> None:
+        """Rebuild the coordination space for robot ``i``'s new plan, carry the labels over,
+        choose the passing orders the change leaves open, then switch to it all (nothing
+        changes when a check refuses; see *Lifelong plans* in the module docstring)."""
+        traj = Trajectories(positions, lengths, self.traj.radius, self.traj.dt)
+        space = build_coordination_space(traj, check_plan=False)
+        labels, tried, changed = carried_labels(self.traj, self.space, self.execution_state, traj, space, i)
+        layout = build_segment_layout(space, Resolution.EXACT)
+        try:
+            detector = IncrementalCycleDetector(layout, labels, self.known)
+        except InfeasibleError:
+            raise InfeasibleError(f"{what}: expected robot {i}'s new plan to keep the segment graph acyclic, received a cycle") from None
+        self._settle_orders(i, space, labels, settled_regions(space, labels, changed, i), detector, what)
+        times = self.executor.times if probability is self.executor.probability else KnownProbabilities(probability, traj.dt)
+        exact = self.executor.resolution is Resolution.EXACT
+        executor = dataclasses.replace(self.executor, traj=traj, space=space, probability=probability, times=times,
+                                       layout=layout if exact else None)
+        orders = None
+        if executor.variant.method is Method.OPTIMAL:
+            orders = OptimalOrders(space, layout, executor.optimal, traj.dt, detector=detector)
+        self.executor, self.traj, self.space = executor, traj, space
+        self.execution_state = dataclasses.replace(self.execution_state, labels=labels, tried=tried, rule=ActionRule(space),
+                                                   detector=flip_detector(executor, detector), orders=orders)
+        self._entries = ProfileEntries.of(space)
+        self._first_sides = 2 * np.arange(space.n_obstacles)
+        self._decision = None
+
+    def _settle_orders(self, i: int, space: CoordinationSpace, labels: np.ndarray, regions: np.ndarray,
+                       detector: IncrementalCycleDetector, what: str) -> None:
+        """Give each of ``regions`` (in index order) its carried label if that order is
+        *admissible*, else the other robot; ``labels`` and ``detector`` follow every flip
+        made. Admissible: the order is not broken (:meth:`_order_broken`) and the active
+        segment graph stays acyclic. When an appended robot ``i`` may pass first in a
+        region but for a cycle, :meth:`_pass_first_earlier` tries reordering the regions
+        before it. A region with no admissible order refuses the change with a one-line
+        error giving both reasons."""
+        appended = bool(space.lengths[i] > self.traj.lengths[i])
+        for obstacle in regions.tolist():
+            carried = int(labels[obstacle])
+            other = int(space.robot_i[obstacle] + space.robot_j[obstacle]) - carried
+            reasons = []
+            for label in (carried, other):
+                reason = self._order_broken(space, obstacle, label) or self._cycle_closed(space, labels, obstacle, label, detector)
+                if reason is None:
+                    labels[obstacle] = label
+                    break
+                reasons.append(reason)
+            else:
+                if not (appended and self._pass_first_earlier(i, space, labels, regions, obstacle, detector)):
+                    raise InfeasibleError(f"{what}: {reasons[0]}; with robot {other} first: {reasons[1]}")
+
+    def _order_broken(self, space: CoordinationSpace, obstacle: int, label: int) -> str | None:
+        """Why robot ``label`` may not pass first in ``obstacle`` whatever the other orders
+        (``None``: it may). The robot passing first parks inside: its waiter would wait for
+        ever. A granted column of the waiter (``≤ reach``) whose highest cell is not below
+        the label robot's known step: Eq. 1's invariant could be broken already."""
+        side = side_with_other(space, obstacle, label)
+        waiter = int(space.side_waiter[side])
+        top = space.side_profile(side)
+        if top.max() >= space.lengths[label]:
+            return (f"expected robot {label}'s plan to end clear of robot {waiter}'s remaining plan, "
+                    f"received robot {waiter} waiting for ever from its step {int(space.side_lo[side])}")
+        columns = np.arange(space.side_lo[side], space.side_hi[side] + 1)
+        crossing = (columns <= self.reach[waiter]) & (top >= self.known[label])
+        if crossing.any():
+            return (f"expected robot {label} past robot {waiter}'s step {int(columns[crossing][0])}, "
+                    f"received it known at step {int(self.known[label])} within 2r of it")
+        return None
+
+    def _cycle_closed(self, space: CoordinationSpace, labels: np.ndarray, obstacle: int, label: int,
+                      detector: IncrementalCycleDetector) -> str | None:
+        """Make ``label`` pass first in ``obstacle`` in ``detector`` unless that closes a cycle
+        in the active segment graph (known progress); the reason when it does."""
+        if labels[obstacle] == label or detector.try_flip(obstacle, label, self.known):
+            return None
+        waiter = int(space.robot_i[obstacle] + space.robot_j[obstacle]) - label
+        return f"expected robot {label} to pass robot {waiter} first without a cycle in the segment graph, received a cycle"
+
+    def _pass_first_earlier(self, i: int, space: CoordinationSpace, labels: np.ndarray, regions: np.ndarray,
+                            obstacle: int, detector: IncrementalCycleDetector) -> bool:
+        """Let the appended robot ``i`` pass first in ``obstacle``, whose other order is
+        broken, by letting it pass first also in the regions of ``regions`` it yields in and
+        enters before it clears ``obstacle`` — earliest first, each flip admissible — until
+        ``obstacle``'s flip closes no cycle. Returns whether it does (if not, the change is
+        refused and these flips, made on the change's own labels and detector, are dropped)."""
+        if self._order_broken(space, obstacle, i) is not None:
+            return False
+        own = lambda o: side_with_other(space, o, int(space.robot_i[o] + space.robot_j[o]) - i)  # noqa: E731 - i waits
+        clear = int(space.side_hi[own(obstacle)])
+        earlier = [o for o in regions.tolist() if labels[o] != i and space.side_lo[own(o)] <= clear and o != obstacle]
+        for o in sorted(earlier, key=lambda o: int(space.side_lo[own(o)])):
+            if self._order_broken(space, o, i) or self._cycle_closed(space, labels, o, i, detector):
+                continue
+            labels[o] = i
+            if self._cycle_closed(space, labels, obstacle, i, detector) is None:
+                labels[obstacle] = i
+                return True
+        return False
+
     # -- what happened ----------------------------------------------------------------------------
     @property
     @locked
@@ -480,3 +712,103 @@ def distances_to_steps(window: np.ndarray, p: np.ndarray, holding: bool) -> np.n
         return to_points
     to_segments = point_segment_distance(p, window[:-1], window[1:])
     return np.append(to_segments, to_points[-1])
+
+
+def appended_steps(path: object, goal: np.ndarray, tolerance: float, i: int) -> np.ndarray:
+    """The steps ``(m, 2)`` a path appended at robot ``i``'s goal adds, or a one-line error."""
+    try:
+        p = np.asarray(path, dtype=float)
+    except (TypeError, ValueError):
+        p = np.full(1, np.nan)
+    if p.ndim != 2 or p.shape[1:] != (2,) or len(p) < 2 or not np.all(np.isfinite(p)):
+        raise ConfigError(f"append_plan: expected robot {i}'s path, an (m + 1, 2) array of finite points with m ≥ 1, received {short_repr(path)}")
+    gap = float(np.linalg.norm(p[0] - goal))
+    if gap > tolerance * (1 + ROUNDING) + ROUNDING:
+        raise ConfigError(f"append_plan: expected robot {i}'s path to start at its goal {goal.tolist()} (within {tolerance:g}), "
+                          f"received a start {p[0].tolist()} at distance {gap:.3g}")
+    return p[1:]
+
+
+def padded(table: np.ndarray, width: int) -> np.ndarray:
+    """``(n, width, …)`` copy of ``table`` whose added columns repeat each row's last entry."""
+    extra = np.repeat(table[:, -1:], width - table.shape[1], axis=1)
+    return np.concatenate([table, extra], axis=1)
+
+
+def carried_labels(old_traj: Trajectories, old: CoordinationSpace, state: ExecutionState, new_traj: Trajectories,
+                   new: CoordinationSpace, robot: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Labels, tried flags and a *changed* mask for the regions of the new plan, in which only
+    ``robot``'s plan changed. A region with the same cells as an old one keeps its label
+    and flag; a part of one old region (a cut) keeps that region's label; any other (new
+    cells of an appended plan) goes to the other robot first: ``robot`` yields."""
+    labels = np.where(new.robot_i == robot, new.robot_j, new.robot_i)
+    tried, changed = np.zeros(new.n_obstacles, bool), np.ones(new.n_obstacles, bool)
+    old_keys = representatives(old)
+    old_of = {key: k for k, key in enumerate(old_keys)}
+    new_keys = representatives(new)
+    cut = new_traj.lengths[robot] < old_traj.lengths[robot]
+    grids: dict[tuple[int, int], np.ndarray] = {}
+    for k, key in enumerate(new_keys):
+        i, j = key[0], key[1]
+        if robot not in (i, j):
+            parents = [old_of[key]]
+        else:
+            if (i, j) not in grids:
+                grids[(i, j)] = ndimage.label(contact_grid(old_traj if cut else new_traj, i, j))[0]
+            grid = grids[(i, j)]
+            parents = [o for o, old_key in enumerate(old_keys) if old_key[:2] == (i, j)
+                       and grid[old_key[2:]] == grid[key[2:]]]
+        if len(parents) == 1 and (cut or new.n_cells[k] == old.n_cells[parents[0]]):
+            labels[k], tried[k] = state.labels[parents[0]], state.tried[parents[0]]
+            changed[k] = new.n_cells[k] != old.n_cells[parents[0]]
+    return labels, tried, changed
+
+
+def representatives(space: CoordinationSpace) -> list[tuple[int, int, int, int]]:
+    """Per region: its pair and one of its cells, ``(i, j, k_i, k_j)`` (its first column's top cell)."""
+    first = 2 * np.arange(space.n_obstacles)
+    return list(zip(space.robot_i.tolist(), space.robot_j.tolist(), space.side_lo[first].tolist(),
+                    space.profile[space.side_offset[first]].tolist()))
+
+
+def contact_grid(traj: Trajectories, i: int, j: int) -> np.ndarray:
+    """``(K_i + 1, K_j + 1)`` cells where robots ``i`` and ``j`` are closer than ``2r`` (the
+    same comparison as :func:`~.coordination_space.build_coordination_space`)."""
+    a, b = traj.positions[i, : traj.lengths[i] + 1], traj.positions[j, : traj.lengths[j] + 1]
+    dx, dy = a[:, None, 0] - b[None, :, 0], a[:, None, 1] - b[None, :, 1]
+    reach = 2.0 * traj.radius
+    return dx * dx + dy * dy < reach * reach
+
+
+def settled_regions(space: CoordinationSpace, labels: np.ndarray, changed: np.ndarray, robot: int) -> np.ndarray:
+    """The regions of ``robot`` whose passing order a change must choose: those it changed,
+    and those whose robot passing first parks inside (it would have to pass its own goal
+    step: its waiter would wait for ever)."""
+    if space.n_obstacles == 0:
+        return np.zeros(0, np.intp)
+    active = labels[space.side_obstacle] == space.side_other
+    highest = np.maximum.reduceat(space.profile, space.side_offset)
+    parked = np.zeros(space.n_obstacles, bool)
+    parked[space.side_obstacle[active & (highest >= space.lengths[space.side_other])]] = True
+    involved = (space.robot_i == robot) | (space.robot_j == robot)
+    return np.flatnonzero(involved & (changed | parked))
+
+
+def side_with_other(space: CoordinationSpace, obstacle: int, label: int) -> int:
+    """The side of ``obstacle`` that is active when ``label`` passes first (its waiter is the other robot)."""
+    first = 2 * obstacle
+    return first if space.side_other[first] == label else first + 1
+
+
+def flip_detector(executor: PlanExecutor, detector: IncrementalCycleDetector) -> IncrementalCycleDetector | None:
+    """The cycle test the executor's own flips go through on a changed plan: ``detector``
+    (the exact segment graph of the new plan, built on the known progress) for TFF and TFA
+    with the deadlock check, and for BTPG (its offline classification holds for the plan
+    it was made on only: after a change each first-come flip is checked instead); a
+    detector of the method's resolution for TFF and TFA at ``definition3``; none for
+    RMTRACK (no flips), the unchecked variants and ``optimal`` (its own detector:
+    :class:`~.optimal.OptimalOrders`)."""
+    method, checked = executor.variant.method, executor.variant.deadlock_check
+    if method is Method.BTPG or (checked and method in (Method.TFF, Method.TFA) and executor.resolution is Resolution.EXACT):
+        return detector
+    return executor._detector(detector.labels) if method in (Method.TFF, Method.TFA) else None

@@ -1,0 +1,215 @@
+"""Lifelong plans with several threads (the *Threads* and *Lifelong plans* claims together):
+every robot driven by its own thread (report its progress, ask for its answer, try a
+step), while an *appender* thread gives finished robots further plans and a *cutter*
+thread cuts robots' remaining plans, each at seeded random times; seeded random sleeps
+between the calls and inside every decision, the thread switch interval at 10 µs.
+Changes race with reports and answers: a change read from a stale snapshot is refused.
+
+Checked at every move, under the world's lock: no two robots closer than ``2r`` at their
+true steps (on the plan of that moment), known progress never past the true one. After
+every change attempt, under the supervisor's lock, and at a stall: the active segment
+graph (exact resolution, on the known progress) holds no cycle. No run stalls: every thread goes
+quiet only when all robots are at their goals, and once the changes stop every run ends
+within a round budget. Every refused change is a one-line error; half the changes (a
+seeded coin) are made holding the supervisor's lock, and their refusals must leave
+plan, regions, labels and known progress as they were."""
+
+from __future__ import annotations
+
+import sys
+import threading
+import time
+
+import numpy as np
+import pytest
+from supervisor_loops import SleepySupervisor, contacts_at, executor_for, wandering_instance
+from test_supervisor_lifelong import METHODS, TOLERANCE, CycleWatch, new_leg
+
+from robofleet.coordination import Supervisor
+from robofleet.core.errors import ConfigError, InfeasibleError
+
+SLEEP = 2e-4
+BUDGET = 20_000
+"""Robot-thread rounds in all, once the changes have stopped, within which every run must end."""
+
+
+@pytest.fixture
+def fast_thread_switches():
+    interval = sys.getswitchinterval()
+    sys.setswitchinterval(1e-5)
+    yield
+    sys.setswitchinterval(interval)
+
+
+class LifelongWorld:
+    """The robots' true progress on the supervisor's current plan, moved under a lock.
+
+    Stalled: every robot thread has gone ``quiet_rounds`` rounds since the last move while
+    some robot is short of its goal, or the robot threads have made ``budget`` rounds in
+    all since the changes stopped. Over: stalled, or the changes have stopped and every
+    robot is at its goal."""
+
+    def __init__(self, sup: Supervisor, budget: int, quiet_rounds: int = 40):
+        self.sup, self.budget, self.quiet_rounds = sup, budget, quiet_rounds
+        self.lock = threading.Lock()
+        n = sup.traj.n_robots
+        self.x = np.zeros(n, np.intp)
+        self.quiet = np.zeros(n, int)
+        self.changers_left = 2
+        self.rounds_after_changes = 0
+        self.contacts = self.overestimates = 0
+        self.stalled = self.over = False
+        self.error: str | None = None
+
+    def step(self, i: int, until: int, disturbed: bool) -> None:
+        with self.lock:
+            traj = self.sup.traj  # moves beyond the old goal follow an answer on the new plan
+            if self.x[i] < until and not disturbed:
+                self.x[i] += 1
+                self.quiet[:] = 0
+                self.contacts += contacts_at(traj, self.x)
+            else:
+                self.quiet[i] += 1
+            self.overestimates += int(np.count_nonzero(self.sup.known > self.x))
+            self.rounds_after_changes += self.changers_left == 0
+            finished = bool(np.all(self.x >= self.sup.traj.lengths))
+            self.stalled = bool(self.quiet.min() >= self.quiet_rounds and not finished) \
+                or self.rounds_after_changes > self.budget
+            self.over = self.over or self.stalled or (self.changers_left == 0 and finished)
+
+    def changer_done(self) -> None:
+        with self.lock:
+            self.changers_left -= 1
+
+
+def refused(sup: Supervisor, change, checked: bool) -> str | None:
+    """Apply a plan change; ``None`` when made, else the refusal's message, which must be one
+    line. ``checked``: made holding the supervisor's (re-entrant) lock, so that no other
+    thread's report, flip or change lands in between, and a refusal must leave plan,
+    regions, labels and known progress as they were (unchecked changes rely on the
+    method's own lock alone)."""
+    if not checked:
+        try:
+            change()
+            return None
+        except (ConfigError, InfeasibleError) as error:
+            assert "\n" not in str(error) and str(error)
+            return str(error)
+    with sup._lock:
+        before = (sup.traj, sup.labels, sup.space.n_obstacles, sup.known.copy(), sup.reach.copy())
+        message = refused(sup, change, checked=False)
+        if message:
+            assert sup.traj is before[0] and sup.space.n_obstacles == before[2]
+            assert np.array_equal(sup.labels, before[1])
+            assert np.array_equal(sup.known, before[3]) and np.array_equal(sup.reach, before[4])
+        return message
+
+
+def lifelong_threaded_run(seed: int, method: str, n: int = 4, appends: int = 5, cuts: int = 4) -> dict:
+    """One run: ``n`` robot threads, an appender making ``appends`` attempts and a cutter
+    making ``cuts`` attempts at seeded random times; returns its counts."""
+    rng = np.random.default_rng([seed, 99])
+    traj = wandering_instance(rng, n, TOLERANCE)
+    executor = executor_for(traj, method)
+    sup = SleepySupervisor(traj, executor=executor, position_tolerance=TOLERANCE, lookahead=1 + seed % 3,
+                           sleep=SLEEP, seed=seed)
+    world = LifelongWorld(sup, budget=BUDGET)
+    counts = dict(appends=0, cuts=0, refused=0)
+    counts_lock = threading.Lock()
+    watch = CycleWatch()
+
+    def record(message: str | None, made: str) -> None:
+        with counts_lock:
+            counts["refused" if message else made] += 1
+        with sup._lock:
+            watch.check(sup)
+
+    def guarded(body):
+        def run(*args):
+            try:
+                body(*args)
+            except BaseException as error:  # noqa: BLE001 - reported by the test
+                world.error, world.over = repr(error), True
+        return run
+
+    @guarded
+    def drive(i: int, rng: np.random.Generator) -> None:
+        while not world.over:
+            sup.report(i, progress=int(world.x[i]))
+            time.sleep(rng.uniform(0, SLEEP))
+            answer = sup.answer(i)
+            p = sup.executor.probability[i, min(int(world.x[i]), sup.executor.probability.shape[1] - 1)]
+            world.step(i, answer.until if answer.go else -1, rng.random() < p)
+            if answer.action == "done":
+                time.sleep(rng.uniform(0, 4 * SLEEP))
+
+    @guarded
+    def append(rng: np.random.Generator) -> None:
+        left = appends
+        while left and not world.over:
+            time.sleep(rng.uniform(0, 20 * SLEEP))
+            plan = sup.traj  # a snapshot: it may be stale by the time the change runs
+            finished = np.flatnonzero(sup.known >= plan.lengths)
+            if len(finished) == 0:
+                continue
+            i = int(rng.choice(finished))
+            leg = new_leg(rng, plan.positions[i, plan.lengths[i]])
+            record(refused(sup, lambda: sup.append_plan(i, leg), rng.random() < 0.5), "appends")
+            left -= 1
+        world.changer_done()
+
+    @guarded
+    def cut(rng: np.random.Generator) -> None:
+        for _ in range(cuts):
+            if world.over:
+                break
+            time.sleep(rng.uniform(0, 200 * SLEEP))
+            i = int(rng.integers(n))
+            plan, reached = sup.traj, int(max(sup.reach[i], sup.known[i]))
+            step = int(min(plan.lengths[i], reached + rng.integers(0, 6)))
+            record(refused(sup, lambda: sup.cut_plan(i, step), rng.random() < 0.5), "cuts")
+        world.changer_done()
+
+    threads = [threading.Thread(target=drive, args=(i, np.random.default_rng([seed, i]))) for i in range(n)]
+    threads += [threading.Thread(target=append, args=(np.random.default_rng([seed, n]),)),
+                threading.Thread(target=cut, args=(np.random.default_rng([seed, n + 1]),))]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join()
+    if world.stalled:  # is the stall a cycle of waiting robots?
+        watch.check(sup)
+    return dict(counts, contacts=world.contacts, overestimates=world.overestimates, cycles=watch.cycles,
+                stalled=world.stalled, error=world.error, rounds_after_changes=world.rounds_after_changes)
+
+
+def threaded_runs(method: str, seeds) -> tuple[dict, list]:
+    """Totals over the runs of ``seeds``, and the runs that broke a guarantee."""
+    totals, bad = {"runs": 0}, []
+    for seed in seeds:
+        counts = lifelong_threaded_run(seed, method)
+        totals["runs"] += 1
+        if counts["error"] or counts["contacts"] or counts["overestimates"] or counts["cycles"] or counts["stalled"]:
+            bad.append((seed, counts))
+        for key in ("appends", "cuts", "refused", "contacts", "overestimates", "cycles", "stalled"):
+            totals[key] = totals.get(key, 0) + int(counts[key])
+        totals["most_rounds_after_changes"] = max(totals.get("most_rounds_after_changes", 0), counts["rounds_after_changes"])
+    print(method, totals)
+    return totals, bad
+
+
+@pytest.mark.usefixtures("fast_thread_switches")
+@pytest.mark.parametrize("method", METHODS)
+def test_plans_appended_and_cut_from_other_threads_never_collide_nor_stall(method):
+    totals, bad = threaded_runs(method, range(6))
+    assert bad == []
+    assert totals["appends"] >= 15 and totals["cuts"] >= 8
+
+
+@pytest.mark.slow
+@pytest.mark.usefixtures("fast_thread_switches")
+@pytest.mark.parametrize("method", METHODS)
+def test_plans_appended_and_cut_from_other_threads_never_collide_nor_stall_on_many_seeds(method):
+    totals, bad = threaded_runs(method, range(6, 40))
+    assert bad == []
+    assert totals["appends"] >= 85 and totals["cuts"] >= 40
