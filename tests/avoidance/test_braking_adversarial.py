@@ -202,15 +202,7 @@ def new_goals(world, which, draw):
         point = draw(i)
         if point is not None:
             world.goals[i, :2] = point
-    for team, g in zip(world.spec.team_specs(), world.groups):
-        local = which[(which >= g.index.start) & (which < g.index.stop)] - g.index.start
-        if len(local) == 0:
-            continue
-        g.arrived[local] = False
-        if g.si_state is not None:
-            g.si_state.arrived[local] = False
-        if g.navigation is not None:
-            g.navigation = world.navigation(team, world.goals[g.index])
+    world.retarget(np.asarray(which))
 
 
 def run_world(seed, count, steps, roadmap=False):

@@ -1,4 +1,4 @@
-"""The roadmap of :mod:`robofleet.avoidance.navigation`: exact against brute force on
+"""The route stage of :mod:`robofleet.avoidance.navigation.route`: exact against brute force on
 small inputs, robots of every 2-D model get out of a trap the goal alone leads into, and
 a gap a robot can enter but not pass counts as closed."""
 
@@ -8,7 +8,7 @@ import pytest
 from shapely.geometry import LineString, Point, Polygon
 
 import robofleet
-from robofleet.avoidance.navigation import (
+from robofleet.avoidance.navigation.route import (
     Roadmap,
     exit_points,
     gap_blockers,
