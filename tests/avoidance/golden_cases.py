@@ -69,13 +69,13 @@ def case_digests(name: str, navigation: bool, switch) -> dict[str, str]:
     return {key: digest(trace.arrays[key]) for key in PINNED}
 
 
-def liveness_switch(mapping: dict, on: bool) -> dict:
-    """The scenario key that switched the navigation stages when the digests were recorded."""
-    return {**mapping, "liveness": {**mapping.get("liveness", {}), "enabled": on}}
+def navigation_switch(mapping: dict, on: bool) -> dict:
+    """``mapping`` with its navigation stages switched on or off."""
+    return {**mapping, "navigation": {**mapping.get("navigation", {}), "enabled": on}}
 
 
 if __name__ == "__main__":
-    table = {f"{name}/{'on' if on else 'off'}": case_digests(name, on, liveness_switch) for name in CASES for on in (True, False)}
+    table = {f"{name}/{'on' if on else 'off'}": case_digests(name, on, navigation_switch) for name in CASES for on in (True, False)}
     tmp = GOLDEN.with_suffix(".tmp")
     tmp.write_text(json.dumps(table, indent=1, sort_keys=True) + "\n")
     tmp.replace(GOLDEN)

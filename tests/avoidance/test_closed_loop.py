@@ -74,7 +74,7 @@ def head_on(deadlock_enabled, liveness=False):
     return robofleet.load_scenario({
         "method": "bvc", "max_steps": 400,
         "robots": {"n": 2, "sigma": 0.0, "layout": {"kind": "explicit", "starts": [[-2, 0], [2, 0]], "goals": [[2, 0], [-2, 0]]}},
-        "deadlock": {"enabled": deadlock_enabled}, "liveness": {"enabled": liveness},
+        "deadlock": {"enabled": deadlock_enabled}, "navigation": {"enabled": liveness},
     })
 
 

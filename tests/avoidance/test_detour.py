@@ -82,7 +82,7 @@ def gap_mapping(detour: bool) -> dict:
             "robots": {"n": 3, "radius": 0.2, "v_max": 0.4, "sigma": 0.1,
                        "layout": {"kind": "explicit", "starts": [[0, 0], [-3, 0.3], [3, -0.3]],
                                   "goals": [[0, 0], [3, 0.3], [-3, -0.3]]}},
-            "liveness": {"enabled": True, "detour": detour}}
+            "navigation": {"enabled": True, "detour": {"enabled": detour}}}
 
 
 def test_robots_go_round_a_parked_robot_that_closes_a_gap():

@@ -21,4 +21,4 @@ PARAMS = [pytest.param(key, marks=[pytest.mark.slow] if key in HEAVY else [], id
 @pytest.mark.parametrize("key", PARAMS)
 def test_seeded_run_reproduces_the_golden_trace(key):
     name, mode = key.split("/")
-    assert cases.case_digests(name, mode == "on", cases.liveness_switch) == GOLDEN[key]
+    assert cases.case_digests(name, mode == "on", cases.navigation_switch) == GOLDEN[key]

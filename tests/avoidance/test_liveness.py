@@ -111,7 +111,7 @@ def trap_mapping(liveness: bool) -> dict:
          "robots": {"n": 3, "radius": 0.2, "v_max": 0.4, "sigma": 0.1,
                     "layout": {"kind": "explicit", "starts": [[0, 0.475], [0, -0.475], [-3, 0]],
                                "goals": [[0, 0.475], [0, -0.475], [3, 0]]}},
-         "liveness": {"enabled": liveness}}
+         "navigation": {"enabled": liveness}}
     return m
 
 
@@ -128,16 +128,16 @@ def test_two_parked_robots_trap_only_yielding_escapes(seed):
 
 def test_liveness_is_on_by_default_and_off_changes_nothing_else():
     """Off, its parameters are ignored: the paper's controller, bit for bit."""
-    assert robofleet.load_scenario("scenarios/avoidance/three_boxes.yaml").liveness.enabled
-    off = {"max_steps": 80, "liveness": {"enabled": False}}
+    assert robofleet.load_scenario("scenarios/avoidance/three_boxes.yaml").navigation.enabled
+    off = {"max_steps": 80, "navigation": {"enabled": False}}
     a = robofleet.simulate(robofleet.load_scenario("scenarios/avoidance/three_boxes.yaml", overrides=off), seed=4)
     b = robofleet.simulate(robofleet.load_scenario("scenarios/avoidance/three_boxes.yaml",
-                                                   overrides={**off, "liveness": {"enabled": False, "aside": 0.9, "near": 0.3}}), seed=4)
+                                                   overrides={**off, "navigation": {"enabled": False, "yielding": {"aside": 0.9, "near": 0.3}}}), seed=4)
     np.testing.assert_array_equal(a.arrays["positions"], b.arrays["positions"])
 
 
 def test_same_seed_same_trace_with_liveness():
-    spec = robofleet.load_scenario("scenarios/avoidance/ten_boxes.yaml", overrides={"max_steps": 120, "liveness": {"enabled": True}})
+    spec = robofleet.load_scenario("scenarios/avoidance/ten_boxes.yaml", overrides={"max_steps": 120, "navigation": {"enabled": True}})
     t1, t2 = robofleet.simulate(spec, seed=3), robofleet.simulate(spec, seed=3)
     np.testing.assert_array_equal(t1.arrays["positions"], t2.arrays["positions"])
 

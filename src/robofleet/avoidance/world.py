@@ -55,7 +55,7 @@ from .metrics import ControllerCounts
 from .mpc import BuavcMPC, SingleIntegratorParams
 from .navigation import NavigationParams, StepState, TeamNavigation, pipeline_of
 from .navigation.detour import Detours
-from .navigation.params import LIVENESS_PLACES, from_mapping
+from .navigation.params import from_mapping
 from .navigation.pipeline import MPC_NO_MPC, PIPELINES
 from .navigation.progress import DeadlockParams
 from .navigation.route import Roadmap, Route
@@ -67,12 +67,8 @@ CONTROL_WIDTH = {"single_integrator": 2, "double_integrator": 2, "unicycle": 2, 
 
 
 def navigation_params(spec: Spec) -> NavigationParams:
-    """The navigation stages' parameters of a scenario (its ``liveness:`` fields, nested by stage)."""
-    nested: dict = {}
-    for name, value in spec.liveness.model_dump().items():
-        *block, key = LIVENESS_PLACES[name].split(".")
-        (nested.setdefault(block[0], {}) if block else nested)[key] = value
-    return from_mapping(nested)
+    """The navigation stages' parameters of a scenario (its ``navigation:`` block)."""
+    return from_mapping(spec.navigation.model_dump())
 
 
 # ---------------------------------------------------------------------------------------
@@ -444,7 +440,7 @@ class World:
             self.velocity = (self.positions() - before) / self.dt
 
     def settled(self, estimates: np.ndarray) -> bool:
-        """No arrived robot is away from its goal on a yield (:mod:`.liveness`)."""
+        """No arrived robot is away from its goal on a yield (:mod:`.navigation.yielding`)."""
         tol = self.spec.goal_tolerance
         for g in self.groups:
             parking = g.nav.parking if g.nav is not None else None

@@ -44,7 +44,7 @@ LIVENESS_PLACES = {
     "right_hand_angle": "right_hand.angle", "face_near": "right_hand.face_near",
     "detour": "detour.enabled", "detour_steps": "detour.steps", "band_sigmas": "band.sigmas",
 }
-"""Where each field of the former flat ``liveness:`` block lives under ``navigation:``."""
+"""Where each field of a flat ``liveness:`` block belongs under ``navigation:`` (named by the error it gets)."""
 
 
 def from_mapping(data: dict) -> NavigationParams:
