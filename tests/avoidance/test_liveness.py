@@ -9,6 +9,7 @@ from robofleet.avoidance import CellGeometry, ObstacleSet, build_cells, wall_pla
 from robofleet.avoidance.cell import Cells, Kind
 from robofleet.avoidance.navigation import NavigationParams, TeamNavigation
 from robofleet.avoidance.navigation.band import out_of_the_band
+from robofleet.avoidance.navigation.goal import GoalChecker
 from robofleet.avoidance.navigation.progress import DeadlockParams
 from robofleet.avoidance.navigation.yielding import (
     HOLD,
@@ -74,11 +75,14 @@ def test_a_returning_robot_drives_until_it_is_back_at_its_goal():
     est, goals = np.array([[0.0, -1.0]]), np.zeros((1, 2))
     state = ParkingState.initial(1)
     state.mode[:], state.mode_left[:] = RETURN, 200
+    checker = GoalChecker.initial(1, 0.1)
     for k in range(10):
         est[0, 1] = -1.0 + 0.1 * k  # driving back, 0.1 m a step
+        checker.observe(est, goals)
         target, moving = parking_targets(est, goals, np.array([True]), state, YieldingParams(), tolerance=0.1)
+        checker.settle(state.mode == HOLD)
         assert moving[0] == (k < 9)
-        assert state.settled(est, goals, 0.1) == (k >= 7)  # within 3 × tolerance
+        assert checker.all_home() == (k >= 9)  # home once back within the tolerance, holding
         np.testing.assert_allclose(target[0], goals[0])
 
 

@@ -439,14 +439,13 @@ class World:
         if before is not None:
             self.velocity = (self.positions() - before) / self.dt
 
-    def settled(self, estimates: np.ndarray) -> bool:
-        """No arrived robot is away from its goal on a yield (:mod:`.navigation.yielding`)."""
-        tol = self.spec.goal_tolerance
-        for g in self.groups:
-            parking = g.nav.parking if g.nav is not None else None
-            if parking is not None and not parking.settled(estimates[g.index, :2], self.goals[g.index, :2], tol):
-                return False
-        return True
+    def home(self) -> np.ndarray:
+        """``(N,)``: which robots are home (:class:`.navigation.goal.GoalChecker`: within the
+        tolerance by their estimate when they last held; ORCA: arrived)."""
+        if len(self.groups) == 1:
+            g = self.groups[0]
+            return g.arrived if g.nav is None else g.nav.goal.home
+        return np.concatenate([g.arrived if g.nav is None else g.nav.goal.home for g in self.groups])
 
     def counts(self) -> ControllerCounts:
         """The controllers' counters (deadlocks, MPC fallbacks; empty cells are counted from events)."""

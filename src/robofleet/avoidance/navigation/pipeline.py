@@ -16,6 +16,7 @@ The stages (each its own module, with its design, equations and guarantee):
 
 =================  ==========================================================================
 ``goal``           :mod:`.goal`: latch arrivals (estimate within the goal tolerance)
+``home``           :mod:`.goal`: robots within the tolerance that hold are home
 ``route``          :mod:`.route`: the roadmap sub-goal and the path length left
 ``detour``         :mod:`.detour`: blocked robots re-plan around neighbours that hold still
 ``recovery``       :mod:`.recovery`: appendix C's rotated goal or obstacle vertex
@@ -40,22 +41,22 @@ from ..diff_drive import three_projection_control
 from ..projection import Projection, project_onto_cells, steer
 from .band import out_of_the_band
 from .detour import Detours
-from .goal import latch_arrivals
+from .goal import GoalChecker
 from .params import NavigationParams
 from .progress import DeadlockParams, livelocks, stalled_along_route
 from .recovery import NORMAL, GoalRotation, count_down, recovery_targets, start_recovery
 from .right_hand import turned_projection, turned_targets
 from .route import Route
-from .yielding import ParkingState, parking_targets
+from .yielding import HOLD, ParkingState, parking_targets
 
 MPC_NO_MPC, MPC_SOLVED, MPC_FALLBACK, MPC_ARRIVED = -1, 0, 1, 2  # mpc_status codes (int8)
 
 PIPELINES: dict[str, tuple[str, ...]] = {
-    "single_integrator": ("goal", "route", "detour", "recovery", "yielding", "project", "right_hand", "band", "keep",
-                          "progress"),
-    "double_integrator": ("goal", "route", "detour", "right_hand", "yielding", "recovery", "keep"),
-    "unicycle": ("goal", "route", "yielding", "recovery", "keep"),
-    "mpc": ("goal", "keep"),
+    "single_integrator": ("goal", "route", "detour", "recovery", "yielding", "home", "project", "right_hand", "band",
+                          "keep", "progress"),
+    "double_integrator": ("goal", "route", "detour", "right_hand", "yielding", "home", "recovery", "keep"),
+    "unicycle": ("goal", "route", "yielding", "home", "recovery", "keep"),
+    "mpc": ("goal", "home", "keep"),
 }
 """The stages of each pipeline, in order. Single integrators recover on the route's target
 and turn their projected target; double integrators turn the target before their braking
@@ -111,7 +112,7 @@ class TeamNavigation:
     detours: Detours | None = None
     grown: np.ndarray | None = field(default=None, repr=False)  # appendix C vertex targets (single integrators)
     keeper: object = None  # the model's cell-keeping controller's parameters, or the MPC
-    arrived: np.ndarray = None
+    goal: GoalChecker = None
     parking: ParkingState | None = None
     rotation: GoalRotation | None = None
     mode: np.ndarray = None
@@ -131,7 +132,7 @@ class TeamNavigation:
         self.stages = [STAGES.get((name, self.pipeline), STAGES.get(name)) for name in PIPELINES[self.pipeline]]
         self.mpc_status = np.full(self.n, MPC_NO_MPC, np.int8)
         n, window = self.n, max(self.deadlock.window, 1)
-        self.arrived = np.zeros(n, bool)
+        self.goal = GoalChecker.initial(n, self.tolerance)
         self.mode, self.mode_left, self.vertex = np.zeros(n, np.int8), np.zeros(n, np.int32), np.zeros((n, 2))
         self.history, self.speed_history = np.full((window, n), np.nan), np.zeros((window, n))
         self.deadlocks, self.livelock_count = np.zeros(n, np.int64), np.zeros(n, np.int64)
@@ -140,6 +141,11 @@ class TeamNavigation:
         if self.pipeline in ("double_integrator", "unicycle"):
             d = self.deadlock
             self.rotation = GoalRotation(n, d.window, d.progress_fraction * self.v_max * d.window * self.dt, d.recover_steps)
+
+    @property
+    def arrived(self) -> np.ndarray:
+        """Latched arrivals (:class:`.goal.GoalChecker`)."""
+        return self.goal.arrived
 
     @property
     def navigating(self) -> bool:
@@ -176,8 +182,13 @@ class TeamNavigation:
 # the stages
 # ---------------------------------------------------------------------------------------
 def goal_stage(t: TeamNavigation, s: StepState) -> None:
-    latch_arrivals(t.arrived, s.p, s.goals, t.tolerance)
+    t.goal.observe(s.p, s.goals)
     s.target, s.moving = s.goals, np.zeros(len(s.goals), bool)
+
+
+def home_stage(t: TeamNavigation, s: StepState) -> None:
+    """Robots within the tolerance that hold (not yielding or returning) are home."""
+    t.goal.settle(True if t.parking is None else t.parking.mode == HOLD)
 
 
 def route_stage(t: TeamNavigation, s: StepState) -> None:
@@ -284,7 +295,7 @@ def project_2d(points: np.ndarray, A: np.ndarray, b: np.ndarray, valid: np.ndarr
 
 
 STAGES = {
-    "goal": goal_stage, "route": route_stage, "detour": detour_stage, "yielding": yielding_stage, "project": project_stage,
+    "goal": goal_stage, "home": home_stage, "route": route_stage, "detour": detour_stage, "yielding": yielding_stage, "project": project_stage,
     "band": band_stage, "progress": progress_stage,
     ("recovery", "single_integrator"): single_integrator_recovery, "recovery": rotation_recovery,
     ("right_hand", "single_integrator"): single_integrator_right_hand, "right_hand": right_hand_stage,

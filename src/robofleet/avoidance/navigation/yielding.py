@@ -115,12 +115,6 @@ class ParkingState:
         parked: held still (:class:`StillTracker`) for ``still_steps`` steps."""
         return self.stillness.observe(estimates, params.still_radius, params.still_steps) >= params.still_steps
 
-    def settled(self, estimates: np.ndarray, goals: np.ndarray, tolerance: float) -> bool:
-        """Every robot that is stepping aside or returning is still (or again) within
-        ``3 · tolerance`` of its goal by its estimate."""
-        away = np.linalg.norm(estimates - goals, axis=1) > 3 * tolerance
-        return not bool(np.any((self.mode != HOLD) & away))
-
     @classmethod
     def initial(cls, n: int, dim: int = 2) -> ParkingState:
         counters = [np.zeros(n, np.int32) for _ in range(3)]
