@@ -132,7 +132,7 @@ def simulate(spec: Spec, seed: int | None = None, progress: bool = False) -> Tra
     home = world.home()
     results["arrived"] = float(home.mean())  # the goal checker's verdict at the end, not the latched arrivals
     results["success"] = bool(results["success"] and home.all())
-    final = arrays["positions"][-1]
+    final = world.positions()  # the last state, whatever rows record_every kept
     results["max_true_goal_distance"] = float(np.linalg.norm(final - world.goals[:, : final.shape[1]], axis=1).max())
     metadata = {**world.metadata(), "loop_seconds": loop_seconds}
     return rec.trace("avoidance", scenario=spec.scenario_name, seed=seed, metadata=metadata, results=results, workspace=workspace)
