@@ -47,7 +47,7 @@ from .progress import DeadlockParams, livelocks, stalled_along_route
 from .recovery import NORMAL, GoalRotation, count_down, recovery_targets, start_recovery
 from .right_hand import turned_projection, turned_targets
 from .route import Route
-from .yielding import HOLD, ParkingState, parking_targets
+from .yielding import HOLD, YIELD, ParkingState, parking_targets
 
 MPC_NO_MPC, MPC_SOLVED, MPC_FALLBACK, MPC_ARRIVED = -1, 0, 1, 2  # mpc_status codes (int8)
 
@@ -215,10 +215,15 @@ def rotation_recovery(t: TeamNavigation, s: StepState) -> None:
 
 
 def yielding_stage(t: TeamNavigation, s: StepState) -> None:
+    """Arrived robots step aside or hold (:func:`.yielding.parking_targets`); a robot on its
+    way back — returning from a yield, or holding away from its goal without being home
+    (:class:`.goal.GoalChecker`) — follows the route's target, as a robot on its way does."""
     if not (t.navigating and t.params.yielding.enabled):
         return
     parked, s.moving = parking_targets(s.p, s.goals, t.arrived, t.parking, t.yielding_params(), t.local_box, t.tolerance)
-    s.target = np.where(t.arrived[:, None], parked, s.target)
+    s.moving |= t.arrived & (t.parking.mode == HOLD) & ~t.goal.home & ~t.goal.within
+    returning = s.moving & (t.parking.mode != YIELD)
+    s.target = np.where((t.arrived & ~returning)[:, None], parked, s.target)
 
 
 def project_stage(t: TeamNavigation, s: StepState) -> None:
