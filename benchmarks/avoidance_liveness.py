@@ -8,7 +8,7 @@ success with its Clopper–Pearson 95 % interval, the share of robots that arriv
 mean travel time over successful runs, contacts and the per-step contact rate's 95 %
 upper bound (next to δ), and the shares of robot-steps whose estimate lay in its own
 cell and whose cell was empty (the premise of the guarantee). ``--liveness on|off|spec``
-overrides the ``liveness:`` block.
+switches the navigation stages (``navigation.enabled``; ``spec`` keeps the scenario's).
 
 ``--before-after`` prints, per scenario, the paper's controller at the budget the
 scenarios shipped with before the liveness rules (:data:`EARLIER_BUDGETS`; what a user
@@ -65,11 +65,11 @@ def shipped_mappings(names: list[str] | None) -> dict[str, dict]:
 
 
 def with_liveness(mapping: dict, mode: str, budget_factor: float = 1.0) -> dict:
-    """``mapping`` with its ``liveness`` block switched on/off (``spec`` keeps it) and its
+    """``mapping`` with its navigation stages switched on/off (``spec`` keeps them) and its
     step budget multiplied by ``budget_factor``."""
     out = {**mapping, "max_steps": int(round(budget_factor * mapping.get("max_steps", 500)))}
     if mode != "spec":
-        out["liveness"] = {**mapping.get("liveness", {}), "enabled": mode == "on"}
+        out["navigation"] = {**mapping.get("navigation", {}), "enabled": mode == "on"}
     return out
 
 
@@ -134,7 +134,7 @@ HEADER = ("| scenario | runs | success [CP 95 %] | arrived | mean travel time of
 def before_after(name: str, mapping: dict, seeds: range, delta: float) -> list[str]:
     """Two table rows (the paper's controller at the earlier budget, the shipped scenario)
     and the paired travel time."""
-    before = {**mapping, "max_steps": EARLIER_BUDGETS[name], "liveness": {"enabled": False}}
+    before = {**mapping, "max_steps": EARLIER_BUDGETS[name], "navigation": {"enabled": False}}
     rows_b = run_all([before] * len(seeds), list(seeds))
     rows_a = run_all([mapping] * len(seeds), list(seeds))
     return [summarise(f"{name}, before", rows_b, delta), summarise(f"{name}, shipped", rows_a, delta),
@@ -148,7 +148,7 @@ def random_rows(rnd: range, liveness: str, budget_factor: float) -> list[dict]:
 
 def random_before_after(rnd: range) -> list[str]:
     """The before/after rows of the random scenarios of ``rnd``."""
-    rows_b = run_all([{**random_scenario(s), "max_steps": EARLIER_BUDGETS["random"], "liveness": {"enabled": False}} for s in rnd], list(rnd))
+    rows_b = run_all([{**random_scenario(s), "max_steps": EARLIER_BUDGETS["random"], "navigation": {"enabled": False}} for s in rnd], list(rnd))
     rows_a = random_rows(rnd, "spec", 1.0)
     return [summarise(f"random {rnd.start}–{rnd.stop - 1}, before", rows_b, 0.1),
             summarise(f"random {rnd.start}–{rnd.stop - 1}, shipped", rows_a, 0.1),

@@ -37,7 +37,7 @@ def circle_mapping(n: int, steps: int, method: str = "buavc", liveness: bool = F
         "family": "avoidance", "name": f"circle-{n}", "method": method, "max_steps": steps,
         "workspace": {"bounds": [-half, -half, half, half]},
         "robots": {"n": n, "radius": 0.2, "v_max": 0.4, "sigma": 0.1, "layout": {"kind": "circle", "radius": radius}},
-        "record_cells": False, "liveness": {"enabled": liveness},
+        "record_cells": False, "navigation": {"enabled": liveness},
     }
 
 

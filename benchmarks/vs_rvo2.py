@@ -69,7 +69,7 @@ def scenario(n: int, steps: int, method: str, sigma: float, liveness: bool = Fal
     return robofleet.load_scenario({
         "family": "avoidance", "name": f"circle-{n}", "method": method, "max_steps": steps, "dt": DT,
         "workspace": {"bounds": [-half, -half, half, half]}, "record_cells": False, "orca": ORCA.model_dump(),
-        "liveness": {"enabled": liveness},
+        "navigation": {"enabled": liveness},
         "robots": {"n": n, "radius": RADIUS, "v_max": V_MAX, "sigma": sigma, "layout": {"kind": "circle", "radius": rho}},
     })
 

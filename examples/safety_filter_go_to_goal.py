@@ -16,7 +16,7 @@ import argparse
 import numpy as np
 
 from robofleet.avoidance import SafetyFilter
-from robofleet.avoidance.controller import DeadlockParams
+from robofleet.avoidance.navigation.progress import DeadlockParams
 from robofleet.core.metrics import pair_contacts
 
 RADIUS, V_MAX, DT, SIGMA = 0.2, 0.4, 0.1, 0.05

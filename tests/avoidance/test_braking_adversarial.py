@@ -136,10 +136,10 @@ def arenas_world(seed, count, roadmap):
     lo, hi = centers.min(0) - HALF[1] - 1.0, centers.max(0) + HALF[1] + 1.0
     if roadmap:
         lo, hi = centers[0] - halves[0], centers[0] + halves[0]
-    liveness = {"enabled": True, "roadmap": True} if roadmap else {"enabled": bool(rng.integers(2)), "roadmap": False}
+    navigation = {"enabled": True, "route": {"enabled": True}} if roadmap else {"enabled": bool(rng.integers(2)), "route": {"enabled": False}}
     spec = robofleet.load_scenario({
         "family": "avoidance", "name": f"braking_adversary_{seed}", "method": str(rng.choice(["buavc", "bvc"])), "dt": dt,
-        "max_steps": 1000, "goal_tolerance": 0.1, "local_box": local_box, "liveness": liveness,
+        "max_steps": 1000, "goal_tolerance": 0.1, "local_box": local_box, "navigation": navigation,
         "workspace": {"bounds": [*map(float, lo), *map(float, hi)], "obstacle_sigma": 0.0,
                       "obstacles": [{"vertices": p.tolist()} for ps in all_polygons for p in ps]},
         "robots": {"radius": radius, "sigma": 0.0}, "teams": teams,
@@ -202,15 +202,7 @@ def new_goals(world, which, draw):
         point = draw(i)
         if point is not None:
             world.goals[i, :2] = point
-    for team, g in zip(world.spec.team_specs(), world.groups):
-        local = which[(which >= g.index.start) & (which < g.index.stop)] - g.index.start
-        if len(local) == 0:
-            continue
-        g.arrived[local] = False
-        if g.si_state is not None:
-            g.si_state.arrived[local] = False
-        if g.navigation is not None:
-            g.navigation = world.navigation(team, world.goals[g.index])
+    world.retarget(np.asarray(which))
 
 
 def run_world(seed, count, steps, roadmap=False):
@@ -296,7 +288,7 @@ def boxes_world(seed):
             spec = robofleet.load_scenario({
                 "family": "avoidance", "name": f"braking_adversary_3d_{seed}", "method": "buavc", "dt": dt, "max_steps": 1000,
                 "goal_tolerance": 0.1, "local_box": max(1.0, 2.0 * (radius + reach) + 0.05),
-                "liveness": {"enabled": bool(rng.integers(2))},
+                "navigation": {"enabled": bool(rng.integers(2))},
                 "space3d": {"bounds": [-half, -half, 0.0, half, half, 2.5], "boxes": boxes, "obstacle_sigma": 0.0},
                 "robots": {"radius": radius, "sigma": 0.0}, "teams": listed,
             })

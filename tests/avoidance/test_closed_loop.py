@@ -5,7 +5,8 @@ import pytest
 
 import robofleet
 from robofleet.avoidance import CellGeometry, ObstacleSet, build_cells, cell_from_view, wall_planes
-from robofleet.avoidance.controller import ControllerState, DeadlockParams, single_integrator_control
+from robofleet.avoidance.navigation import NavigationParams, TeamNavigation
+from robofleet.avoidance.navigation.progress import DeadlockParams
 
 
 def swap(n, seed_boxes=False, **extra):
@@ -62,8 +63,8 @@ def test_commanded_step_stays_inside_the_cell():
     geo = CellGeometry(ObstacleSet.build([], [], 0.0), *wall_planes(np.array([[-5, -5], [5, -5], [5, 5], [-5, 5.0]])))
     cells = build_cells(est, covs, np.full(n, 0.2), 1.6, geo, local_box=2.0)
     goals = -est
-    state = ControllerState.initial(n, 20)
-    u, _ = single_integrator_control(est, goals, cells, state, v_max=0.4, dt=0.1, goal_tolerance=0.1, deadlock=DeadlockParams(enabled=False))
+    nav = TeamNavigation("single_integrator", NavigationParams(enabled=False), DeadlockParams(enabled=False), n, 0.4, 0.1, 0.1, 2.0)
+    u = nav.command(est, goals, cells).u
     inside_now = cells.contains(est)
     assert np.all(cells.contains(est + 0.1 * u)[inside_now])
     assert np.all(np.linalg.norm(u, axis=1) <= 0.4 + 1e-12)
@@ -73,7 +74,7 @@ def head_on(deadlock_enabled, liveness=False):
     return robofleet.load_scenario({
         "method": "bvc", "max_steps": 400,
         "robots": {"n": 2, "sigma": 0.0, "layout": {"kind": "explicit", "starts": [[-2, 0], [2, 0]], "goals": [[2, 0], [-2, 0]]}},
-        "deadlock": {"enabled": deadlock_enabled}, "liveness": {"enabled": liveness},
+        "deadlock": {"enabled": deadlock_enabled}, "navigation": {"enabled": liveness},
     })
 
 

@@ -1,4 +1,4 @@
-"""Detours around still neighbours (:mod:`robofleet.avoidance.detour`): the re-plan is
+"""Detours around still neighbours (:mod:`robofleet.avoidance.navigation.detour`): the re-plan is
 the shortest path of brute force (shapely visibility, networkx Dijkstra) over the same
 nodes, and a robot gets through a gap a parked robot closes by going round."""
 
@@ -8,13 +8,13 @@ import pytest
 from shapely.geometry import LineString, Polygon
 
 import robofleet
-from robofleet.avoidance.detour import (
+from robofleet.avoidance.navigation.detour import (
     DetourParams,
     detour_graph,
     disc_polygons,
     shortest_first_step,
 )
-from robofleet.avoidance.navigation import Roadmap, exit_points, grown_polygons
+from robofleet.avoidance.navigation.route import Roadmap, exit_points, grown_polygons
 from robofleet.avoidance.random_scenarios import random_convex_polygon
 
 
@@ -82,7 +82,7 @@ def gap_mapping(detour: bool) -> dict:
             "robots": {"n": 3, "radius": 0.2, "v_max": 0.4, "sigma": 0.1,
                        "layout": {"kind": "explicit", "starts": [[0, 0], [-3, 0.3], [3, -0.3]],
                                   "goals": [[0, 0], [3, 0.3], [-3, -0.3]]}},
-            "liveness": {"enabled": True, "detour": detour}}
+            "navigation": {"enabled": True, "detour": {"enabled": detour}}}
 
 
 def test_robots_go_round_a_parked_robot_that_closes_a_gap():

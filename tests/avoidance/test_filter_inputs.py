@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from robofleet.avoidance import RobotSafetyFilter, SafetyFilter
-from robofleet.avoidance.controller import DeadlockParams
+from robofleet.avoidance.navigation.progress import DeadlockParams
 from robofleet.core.errors import ConfigError
 
 pytestmark = pytest.mark.filterwarnings("error")  # numpy must not warn (overflow, invalid values, complex casts)

@@ -5,7 +5,8 @@ import numpy as np
 import pytest
 
 import robofleet
-from robofleet.avoidance.spec import sample_antipodal, start_clearances
+from robofleet.avoidance.layout import sample_antipodal
+from robofleet.avoidance.spec import start_clearances
 from robofleet.core.errors import ScenarioError
 
 

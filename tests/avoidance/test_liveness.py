@@ -7,18 +7,16 @@ import pytest
 import robofleet
 from robofleet.avoidance import CellGeometry, ObstacleSet, build_cells, wall_planes
 from robofleet.avoidance.cell import Cells, Kind
-from robofleet.avoidance.controller import (
-    ControllerState,
-    DeadlockParams,
-    _out_of_the_band,
-    single_integrator_control,
-)
-from robofleet.avoidance.liveness import (
+from robofleet.avoidance.navigation import NavigationParams, TeamNavigation
+from robofleet.avoidance.navigation.band import out_of_the_band
+from robofleet.avoidance.navigation.goal import GoalChecker
+from robofleet.avoidance.navigation.progress import DeadlockParams
+from robofleet.avoidance.navigation.yielding import (
     HOLD,
     RETURN,
     YIELD,
-    LivenessParams,
     ParkingState,
+    YieldingParams,
     parking_targets,
 )
 from robofleet.avoidance.projection import project_onto_cells
@@ -41,16 +39,15 @@ def test_yielding_commands_stay_inside_random_cells(seed):
     cells = build_cells(est, covs, np.full(n, 0.2), 1.6, geo, local_box=2.0)
     goals = est + rng.normal(0, 0.05, (n, 2))  # most robots parked next to their goals
     goals[: n // 3] = -est[: n // 3]
-    state = ControllerState.initial(n, 20)
-    params = LivenessParams(enabled=True, near=1.5, linger_steps=1, aside=rng.uniform(0.2, 1.5), clear_steps=5)
+    params = YieldingParams(near=1.5, linger_steps=1, aside=rng.uniform(0.2, 1.5), clear_steps=5)
+    nav = TeamNavigation("single_integrator", NavigationParams(yielding=params), DeadlockParams(), n, 0.4, 0.1, 0.1, 2.0)
     for _ in range(3):  # hold → yield → keep yielding
-        u, _ = single_integrator_control(est, goals, cells, state, v_max=0.4, dt=0.1, goal_tolerance=0.1,
-                                         deadlock=DeadlockParams(), liveness=params, local_box=2.0)
+        u = nav.command(est, goals, cells).u
         inside_now = cells.contains(est)
         assert np.all(cells.contains(est + 0.1 * u)[inside_now])
         assert np.all(np.linalg.norm(u, axis=1) <= 0.4 + 1e-12)
-    assert (state.parking.mode == YIELD).any()  # the property was exercised on yielding robots
-    assert np.any(np.linalg.norm(u[state.arrived], axis=1) > 0)
+    assert (nav.parking.mode == YIELD).any()  # the property was exercised on yielding robots
+    assert np.any(np.linalg.norm(u[nav.arrived], axis=1) > 0)
 
 
 def test_parked_robot_yields_while_a_neighbour_lingers_then_returns():
@@ -61,7 +58,7 @@ def test_parked_robot_yields_while_a_neighbour_lingers_then_returns():
     goals = est.copy()
     parked = np.array([True, False])
     state = ParkingState.initial(2)
-    params = LivenessParams(enabled=True, near=1.0, linger_steps=3, aside=0.6, aside_turn=90.0, clear_steps=2, return_steps=3)
+    params = YieldingParams(near=1.0, linger_steps=3, aside=0.6, aside_turn=90.0, clear_steps=2, return_steps=3)
     modes = []
     for k in range(14):
         if k == 4:
@@ -78,11 +75,14 @@ def test_a_returning_robot_drives_until_it_is_back_at_its_goal():
     est, goals = np.array([[0.0, -1.0]]), np.zeros((1, 2))
     state = ParkingState.initial(1)
     state.mode[:], state.mode_left[:] = RETURN, 200
+    checker = GoalChecker.initial(1, 0.1)
     for k in range(10):
         est[0, 1] = -1.0 + 0.1 * k  # driving back, 0.1 m a step
-        target, moving = parking_targets(est, goals, np.array([True]), state, LivenessParams(enabled=True), tolerance=0.1)
+        checker.observe(est, goals)
+        target, moving = parking_targets(est, goals, np.array([True]), state, YieldingParams(), tolerance=0.1)
+        checker.settle(state.mode == HOLD)
         assert moving[0] == (k < 9)
-        assert state.settled(est, goals, 0.1) == (k >= 7)  # within 3 × tolerance
+        assert checker.all_home() == (k >= 9)  # home once back within the tolerance, holding
         np.testing.assert_allclose(target[0], goals[0])
 
 
@@ -99,7 +99,7 @@ def test_a_yielding_robot_moves_further_aside_but_never_beyond_max_aside():
     est = np.array([[0.0, 0.0], [0.4, 0.0]])
     goals = est.copy()
     state = ParkingState.initial(2)
-    params = LivenessParams(enabled=True, near=1.0, linger_steps=2, aside=0.5, aside_turn=0.0, max_aside=1.2)
+    params = YieldingParams(near=1.0, linger_steps=2, aside=0.5, aside_turn=0.0, max_aside=1.2)
     for _ in range(40):
         target, _ = parking_targets(est, goals, np.array([True, False]), state, params)
         assert np.linalg.norm(target[0] - goals[0]) <= 1.2 + 1e-12
@@ -115,7 +115,7 @@ def trap_mapping(liveness: bool) -> dict:
          "robots": {"n": 3, "radius": 0.2, "v_max": 0.4, "sigma": 0.1,
                     "layout": {"kind": "explicit", "starts": [[0, 0.475], [0, -0.475], [-3, 0]],
                                "goals": [[0, 0.475], [0, -0.475], [3, 0]]}},
-         "liveness": {"enabled": liveness}}
+         "navigation": {"enabled": liveness}}
     return m
 
 
@@ -132,16 +132,16 @@ def test_two_parked_robots_trap_only_yielding_escapes(seed):
 
 def test_liveness_is_on_by_default_and_off_changes_nothing_else():
     """Off, its parameters are ignored: the paper's controller, bit for bit."""
-    assert robofleet.load_scenario("scenarios/avoidance/three_boxes.yaml").liveness.enabled
-    off = {"max_steps": 80, "liveness": {"enabled": False}}
+    assert robofleet.load_scenario("scenarios/avoidance/three_boxes.yaml").navigation.enabled
+    off = {"max_steps": 80, "navigation": {"enabled": False}}
     a = robofleet.simulate(robofleet.load_scenario("scenarios/avoidance/three_boxes.yaml", overrides=off), seed=4)
     b = robofleet.simulate(robofleet.load_scenario("scenarios/avoidance/three_boxes.yaml",
-                                                   overrides={**off, "liveness": {"enabled": False, "aside": 0.9, "near": 0.3}}), seed=4)
+                                                   overrides={**off, "navigation": {"enabled": False, "yielding": {"aside": 0.9, "near": 0.3}}}), seed=4)
     np.testing.assert_array_equal(a.arrays["positions"], b.arrays["positions"])
 
 
 def test_same_seed_same_trace_with_liveness():
-    spec = robofleet.load_scenario("scenarios/avoidance/ten_boxes.yaml", overrides={"max_steps": 120, "liveness": {"enabled": True}})
+    spec = robofleet.load_scenario("scenarios/avoidance/ten_boxes.yaml", overrides={"max_steps": 120, "navigation": {"enabled": True}})
     t1, t2 = robofleet.simulate(spec, seed=3), robofleet.simulate(spec, seed=3)
     np.testing.assert_array_equal(t1.arrays["positions"], t2.arrays["positions"])
 
@@ -179,6 +179,6 @@ def test_an_estimate_deep_beyond_an_obstacle_face_steers_back_into_the_cell(beyo
     projected goal; 0.1 m beyond it the projected goal stays."""
     cells, estimate, goal = band_cells(), np.array([[beyond, 0.5]]), np.array([[0.0, 3.0]])
     proj = project_onto_cells(goal, cells)
-    out = _out_of_the_band(estimate, proj, cells, 0.2)
+    out = out_of_the_band(estimate, proj, cells, 0.2)
     np.testing.assert_allclose(out.point, [[0.0, 0.5]] if back else proj.point)
     np.testing.assert_array_equal(out.active, proj.active)

@@ -8,7 +8,7 @@ import pytest
 import robofleet
 from robofleet.avoidance.cell import Cells, Kind
 from robofleet.avoidance.metrics import box_distance
-from robofleet.avoidance.simulation import ground_section
+from robofleet.avoidance.cell_model import ground_section
 from robofleet.core.errors import ScenarioError
 
 SCENARIOS = Path(__file__).resolve().parents[2] / "scenarios" / "avoidance"
@@ -159,7 +159,7 @@ def test_ground_robot_below_a_flying_one_keeps_its_half_of_the_space():
     is the perpendicular bisector (both σ equal), not the horizontal plane through the
     ground robot that its singular Σ gives appendix B's separator; the buffers use the true
     Σ_i (the ground robot's has no z term), and the two rows are one plane."""
-    from robofleet.avoidance.simulation import cell_model, method_setup
+    from robofleet.avoidance.cell_model import cell_model, method_setup
 
     sigma = 0.05
     mapping = base(method="buavc", space3d={"bounds": [-3, -3, 0, 3, 3, 2.5]}, teams=[
@@ -187,10 +187,11 @@ def test_ground_robot_below_a_flying_one_keeps_its_half_of_the_space():
 
 
 def test_ground_teams_in_3d_steer_by_the_roadmap_around_box_footprints():
-    """The liveness roadmap of a ground team in 3-D is built on the footprints of the
+    """The route of a ground team in 3-D is built on the footprints of the
     boxes that reach its plane (a box hanging above it is not an obstacle to it); flying
     teams get none."""
-    from robofleet.avoidance.simulation import World, ground_footprints
+    from robofleet.avoidance.cell_model import ground_footprints
+    from robofleet.avoidance.world import World
     from robofleet.core.geometry import box_vertices
 
     spec = robofleet.load_scenario(SCENARIOS / "heterogeneous.yaml")
@@ -201,7 +202,7 @@ def test_ground_teams_in_3d_steer_by_the_roadmap_around_box_footprints():
     np.testing.assert_allclose(footprints[0], box_vertices(box.center, box.size, box.yaw))
     world = World(spec, np.random.default_rng(0))
     ground, air = world.groups
-    assert ground.navigation is not None and air.navigation is None
+    assert ground.nav.route is not None and air.nav.route is None
 
 
 @pytest.mark.parametrize("name", ["heterogeneous.yaml", "quadrotors_3d.yaml"])

@@ -8,8 +8,8 @@ from robofleet.avoidance.mpc import (
     BuavcMPC,
     MPCConfig,
     SingleIntegratorParams,
-    rotate_goal_clockwise,
 )
+from robofleet.avoidance.navigation.recovery import rotate_goal_clockwise
 from robofleet.core.errors import ConfigError
 from robofleet.dynamics import double_integrator as di
 from robofleet.dynamics import quadrotor as quad

@@ -1,4 +1,4 @@
-"""The roadmap of :mod:`robofleet.avoidance.navigation`: exact against brute force on
+"""The route stage of :mod:`robofleet.avoidance.navigation.route`: exact against brute force on
 small inputs, robots of every 2-D model get out of a trap the goal alone leads into, and
 a gap a robot can enter but not pass counts as closed."""
 
@@ -8,7 +8,7 @@ import pytest
 from shapely.geometry import LineString, Point, Polygon
 
 import robofleet
-from robofleet.avoidance.navigation import (
+from robofleet.avoidance.navigation.route import (
     Roadmap,
     exit_points,
     gap_blockers,
@@ -78,7 +78,7 @@ def cup(model: str, liveness: bool) -> dict:
          "workspace": {"bounds": [-5, -5, 5, 5], "obstacle_sigma": 0.05, "obstacles": boxes},
          "robots": {"n": 1, "radius": 0.2, "v_max": 0.4 if model != "unicycle" else 0.6, "sigma": 0.05,
                     "layout": {"kind": "explicit", "starts": [[0.0, 0.0]], "goals": [[3.5, 0.3]]}},
-         "liveness": {"enabled": liveness}}
+         "navigation": {"enabled": liveness}}
     if model != "single_integrator":
         m["model"] = {"kind": model, "a_max": 1.0} if model == "double_integrator" else {"kind": model, "omega_max": 1.5707963}
     return m
@@ -124,7 +124,7 @@ def gap(width: float, passage_sigmas: float = 1.5) -> dict:
                           "obstacles": [{"center": [0, h + 0.5], "size": [0.6, 1.0]}, {"center": [0, -h - 0.5], "size": [0.6, 1.0]}]},
             "robots": {"n": 1, "radius": 0.2, "v_max": 0.4, "sigma": 0.1,
                        "layout": {"kind": "explicit", "starts": [[-3.0, 0.0]], "goals": [[3.0, 0.0]]}},
-            "liveness": {"passage_sigmas": passage_sigmas}}
+            "navigation": {"route": {"passage_sigmas": passage_sigmas}}}
 
 
 @pytest.mark.parametrize("seed", range(3))

@@ -13,7 +13,7 @@ from scipy.optimize import minimize
 
 from robofleet import load_scenario
 from robofleet.avoidance import RobotSafetyFilter, SafetyFilter
-from robofleet.avoidance.controller import DeadlockParams
+from robofleet.avoidance.navigation.progress import DeadlockParams
 from robofleet.core.errors import ConfigError, RobofleetError
 
 ROOT = Path(__file__).resolve().parents[2]

@@ -491,3 +491,8 @@ def check_cell_inputs(estimates: object, covs: object, radius: object, geometry:
         raise ConfigError(f"radius: expected an array ({n},), received shape {np.shape(radius)}")
     if not isinstance(geometry, CellGeometry):
         raise ConfigError(f"geometry: expected a CellGeometry, received {type(geometry).__name__}")
+
+
+def cell_rows(cells: Cells, rows: np.ndarray | slice) -> Cells:
+    """The cells of some robots only (an index array or a slice of the fleet)."""
+    return Cells(cells.A[rows], cells.b[rows], cells.valid[rows], cells.kind[rows], cells.source[rows])

@@ -22,10 +22,10 @@ import numpy as np
 from ..core.family import Guarantee, expect_spec
 from ..core.rng import as_generator
 from ..core.spec_blocks import is_convex
-from .cell import Cells
-from .controller import cell_rows
-from .simulation import cell_model, ground_section, method_setup
-from .spec import Spec, TeamSpec, initial_layout
+from .cell import Cells, cell_rows
+from .cell_model import cell_model, ground_section, method_setup
+from .layout import initial_layout
+from .spec import Spec, TeamSpec
 
 LAYOUT_CHECK_SEED = 0
 """Seed of the random (antipodal) layout on which the start condition is evaluated."""

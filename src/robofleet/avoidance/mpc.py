@@ -56,7 +56,7 @@ quadrotor MPC beyond "every predicted position in the current B-UAVC"):
   ignored their cell, and a hovering quadrotor drifted into a passing ground robot); their
   steps are ``mpc_status`` 2 and not counted in the fallback share.
 
-Deadlock (appendix C, :class:`GoalRotation`): when a robot that has not arrived moves
+Deadlock (appendix C, :class:`~robofleet.avoidance.navigation.recovery.GoalRotation`): when a robot that has not arrived moves
 less than ``Δp_min`` over the last ``n_dead`` steps, its goal is rotated clockwise by
 90° about the robot, ``g_tmp = R_z(−90°)(g − p̂) + p̂``, for ``recover_steps`` steps.
 
@@ -81,6 +81,7 @@ from ..dynamics import double_integrator as di
 from ..dynamics import quadrotor as quad
 from ..dynamics import unicycle as uni
 from .braking import braking_control
+from .navigation.recovery import GoalRotation
 from .rti import CondensedSQP, SQPResult, StateLimit
 
 ModelName = Literal["single_integrator", "double_integrator", "unicycle", "quadrotor"]
@@ -447,50 +448,3 @@ class BuavcMPC:
 
     def _working_goals(self, positions: np.ndarray, goals: np.ndarray, arrived) -> np.ndarray:
         return self.rotation.working_goals(positions, goals, arrived)
-
-
-class GoalRotation:
-    """Appendix C deadlock detection and goal rotation, vectorized over robots.
-
-    A robot that has not arrived is deadlocked when its (estimated) position moved less
-    than ``progress`` over the last ``window`` steps. Appendix C sums the step lengths
-    ``Σ‖Δp‖``; we use the net displacement ``‖p̂_k − p̂_{k−window}‖`` instead, because
-    with noisy estimates the summed jitter alone exceeds any useful threshold. For the
-    next ``recover_steps`` steps the robot steers to ``g_tmp = R_z(−90°)(g − p̂) + p̂``
-    (Eq. (51)), then back to ``g``; it is not re-flagged within ``window`` steps.
-    """
-
-    def __init__(self, n: int, window: int, progress: float, recover_steps: int):
-        self.window, self.progress, self.recover_steps = window, progress, recover_steps
-        self._since = np.zeros(n, np.int64)
-        self._left = np.zeros(n, np.int64)
-        self._history = None
-        self.step_count = 0
-        self.deadlocks = np.zeros(n, np.int64)
-
-    def working_goals(self, positions: np.ndarray, goals: np.ndarray, arrived: np.ndarray | None = None) -> np.ndarray:
-        """The goals to steer to this step (rotated for recovering robots); updates the detector."""
-        if self._history is None:
-            self._history = np.repeat(positions[None], self.window, 0)
-        slot = self.step_count % self.window
-        moved = np.linalg.norm(positions - self._history[slot], axis=1)
-        self._history[slot] = positions
-        self.step_count += 1
-        done = np.zeros(len(positions), bool) if arrived is None else arrived
-        self._since += 1
-        stuck = (self.step_count > self.window) & (moved <= self.progress) & ~done
-        stuck &= (self._left == 0) & (self._since > self.window)
-        self._left[stuck] = self.recover_steps
-        self._since[stuck] = 0
-        self.deadlocks += stuck
-        rotating = self._left > 0
-        self._left[rotating] -= 1
-        return np.where(rotating[:, None], rotate_goal_clockwise(positions, goals), goals)
-
-
-def rotate_goal_clockwise(positions: np.ndarray, goals: np.ndarray) -> np.ndarray:
-    """Appendix C, Eq. (51): ``g_tmp = R_z(−90°)(g − p̂) + p̂`` (the z component is kept)."""
-    rel = goals - positions
-    out = rel.copy()
-    out[:, 0], out[:, 1] = rel[:, 1], -rel[:, 0]
-    return out + positions

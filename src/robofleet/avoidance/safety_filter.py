@@ -94,11 +94,11 @@ from ..core.config import ScenarioSource, load_spec
 from ..core.errors import ConfigError, short_repr
 from ..core.spec_blocks import is_convex
 from .cell import CellGeometry, Cells, cell_from_view
-from .controller import DeadlockParams
+from .navigation.progress import DeadlockParams
 from .obstacles import wall_planes
 from .projection import project_onto_cells
 from .separator import as_float_array, check_covariance, power_of_two_scale, scaled
-from .simulation import CellModel, cell_model, method_setup, obstacle_set, shifted
+from .cell_model import CellModel, cell_model, method_setup, obstacle_set, shifted
 from .spec import Spec
 
 _CLOCKWISE_90 = np.array([[0.0, 1.0], [-1.0, 0.0]])  # R_z(−90°), as in appendix C

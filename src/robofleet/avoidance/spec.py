@@ -60,6 +60,12 @@ from ..dynamics.quadrotor import QuadrotorParams
 from .buffer import MIN_DELTA, confidence_quantile, shadow_epsilon
 from .cell3d import shadow_radius
 from .mpc import MPCConfig
+from .navigation.band import BandParams
+from .navigation.detour import DetourParams
+from .navigation.params import LIVENESS_PLACES, NavigationParams
+from .navigation.right_hand import RightHandParams
+from .navigation.route import RouteParams
+from .navigation.yielding import YieldingParams
 from .orca import OrcaParams
 
 Point = tuple[float, float]
@@ -357,7 +363,8 @@ class RobotsSpec(PlanarNoise):
 
 
 class DeadlockSpec(SpecModel):
-    """Deadlock heuristic of appendix C (see :mod:`robofleet.avoidance.controller`)."""
+    """Deadlock heuristic of appendix C: the progress window (:mod:`robofleet.avoidance.navigation.progress`)
+    and the recovery (:mod:`robofleet.avoidance.navigation.recovery`)."""
 
     enabled: bool = True
     window: int = Field(20, ge=1)
@@ -365,31 +372,69 @@ class DeadlockSpec(SpecModel):
     recover_steps: int = Field(10, ge=1)
 
 
-class LivenessSpec(SpecModel):
-    """The liveness rules of :mod:`robofleet.avoidance.liveness` for 2-D teams: roadmap
-    sub-goals around the obstacles, the right-hand turn (not for unicycles), arrived
-    robots that yield and detours around robots that hold still. On by default;
-    ``enabled: false`` gives the paper's controller
+class RouteSpec(SpecModel):
+    """The route stage (:mod:`robofleet.avoidance.navigation.route`): roadmap sub-goals
+    around the obstacles, with passages and exit points."""
+
+    enabled: bool = RouteParams.enabled
+    passage_sigmas: float = Field(RouteParams.passage_sigmas, ge=0)
+    node_factor: float = Field(RouteParams.node_factor, gt=1)
+    sight_factor: float = Field(RouteParams.sight_factor, gt=0, lt=1)
+    gap_factor: float = Field(RouteParams.gap_factor, ge=0)
+
+
+class DetourSpec(SpecModel):
+    """The detour stage (:mod:`robofleet.avoidance.navigation.detour`): blocked robots
+    re-plan around neighbours that hold still (not unicycles)."""
+
+    enabled: bool = DetourParams.enabled
+    steps: int = Field(DetourParams.steps, ge=1)
+    block_steps: int = Field(DetourParams.block_steps, ge=1)
+    node_factor: float = Field(DetourParams.node_factor, gt=1)
+    sight_factor: float = Field(DetourParams.sight_factor, gt=0, lt=1)
+
+
+class YieldingSpec(SpecModel):
+    """The yielding stage (:mod:`robofleet.avoidance.navigation.yielding`): arrived robots
+    step aside for neighbours that wait to pass, and return."""
+
+    enabled: bool = YieldingParams.enabled
+    near: float = Field(YieldingParams.near, gt=0)
+    linger_steps: int = Field(YieldingParams.linger_steps, ge=1)
+    aside: float = Field(YieldingParams.aside, ge=0)
+    max_aside: float = Field(YieldingParams.max_aside, ge=0)
+    aside_turn: float = Field(YieldingParams.aside_turn, ge=-180, le=180)
+    clear_steps: int = Field(YieldingParams.clear_steps, ge=1)
+    max_yield_steps: int = Field(YieldingParams.max_yield_steps, ge=1)
+    still_radius: float = Field(YieldingParams.still_radius, gt=0)
+    still_steps: int = Field(YieldingParams.still_steps, ge=2)
+    return_steps: int = Field(YieldingParams.return_steps, ge=1)
+
+
+class RightHandSpec(SpecModel):
+    """The right-hand stage (:mod:`robofleet.avoidance.navigation.right_hand`, not unicycles)."""
+
+    angle: float = Field(RightHandParams.angle, ge=0, lt=90)
+    face_near: float = Field(RightHandParams.face_near, ge=0)
+
+
+class BandSpec(SpecModel):
+    """The band-return stage (:mod:`robofleet.avoidance.navigation.band`)."""
+
+    sigmas: float = Field(BandParams.sigmas, ge=0)
+
+
+class NavigationSpec(SpecModel):
+    """The navigation stages of 2-D and ground teams (:mod:`robofleet.avoidance.navigation`),
+    one block per stage. On by default; ``enabled: false`` gives the paper's controller
     (appendix C alone, arrived robots hold)."""
 
-    enabled: bool = True
-    roadmap: bool = True
-    near: float = Field(1.5, gt=0)
-    linger_steps: int = Field(30, ge=1)
-    aside: float = Field(0.6, ge=0)
-    max_aside: float = Field(1.5, ge=0)
-    aside_turn: float = Field(45.0, ge=-180, le=180)
-    clear_steps: int = Field(20, ge=1)
-    max_yield_steps: int = Field(150, ge=1)
-    still_radius: float = Field(0.4, gt=0)
-    still_steps: int = Field(50, ge=2)
-    return_steps: int = Field(200, ge=1)
-    right_hand_angle: float = Field(45.0, ge=0, lt=90)
-    face_near: float = Field(0.5, ge=0)
-    detour: bool = True
-    detour_steps: int = Field(300, ge=1)
-    passage_sigmas: float = Field(1.5, ge=0)
-    band_sigmas: float = Field(2.0, ge=0)
+    enabled: bool = NavigationParams.enabled
+    route: RouteSpec = Field(default_factory=RouteSpec)
+    detour: DetourSpec = Field(default_factory=DetourSpec)
+    yielding: YieldingSpec = Field(default_factory=YieldingSpec)
+    right_hand: RightHandSpec = Field(default_factory=RightHandSpec)
+    band: BandSpec = Field(default_factory=BandSpec)
 
 
 # ---------------------------------------------------------------------------------------
@@ -411,7 +456,7 @@ class Spec(RecordingSpec):
     workspace: AvoidanceWorkspaceSpec = Field(default_factory=AvoidanceWorkspaceSpec)
     robots: RobotsSpec = Field(default_factory=RobotsSpec)
     deadlock: DeadlockSpec = Field(default_factory=DeadlockSpec)
-    liveness: LivenessSpec = Field(default_factory=LivenessSpec)
+    navigation: NavigationSpec = Field(default_factory=NavigationSpec)
     record_cells: Optional[bool] = None
     model: ModelSpec = Field(default_factory=ModelSpec)
     orca: OrcaParams = Field(default_factory=OrcaParams)
@@ -429,6 +474,11 @@ class Spec(RecordingSpec):
     @classmethod
     def _no_3d_obstacles_in_2d(cls, data):
         return reject_3d_obstacles_in_2d(data)
+
+    @model_validator(mode="before")
+    @classmethod
+    def _no_liveness_block(cls, data):
+        return reject_liveness_block(data)
 
     @model_validator(mode="after")
     def _cross_checks(self):
@@ -498,6 +548,17 @@ class Spec(RecordingSpec):
 # ---------------------------------------------------------------------------------------
 # cross-field checks
 # ---------------------------------------------------------------------------------------
+def reject_liveness_block(data: Any) -> Any:
+    """Before validation: a flat ``liveness:`` block gets a one-line error naming where each
+    of its fields belongs under ``navigation:``."""
+    if not isinstance(data, dict) or "liveness" not in data:
+        return data
+    old = data["liveness"]
+    keys = list(old) if isinstance(old, dict) else []
+    moves = ", ".join(f"liveness.{k} → navigation.{LIVENESS_PLACES[k]}" for k in keys if k in LIVENESS_PLACES)
+    raise ScenarioError("liveness", "the `navigation:` block, one sub-block per stage" + (f" ({moves})" if moves else ""), old)
+
+
 def reject_3d_obstacles_in_2d(data: Any) -> Any:
     """Before validation: a 3-D box under ``workspace.obstacles`` gets a clear one-line error."""
     if not isinstance(data, dict):
@@ -679,86 +740,3 @@ def start_clearances(spec: Spec) -> tuple[float, float, float]:
     sigma_o = float(np.sqrt(max(np.linalg.eigvalsh(spec.workspace.obstacle_covariance()).max(), 0.0)))
     own = spec.robots.radius + q * sigma
     return 2 * own, own + shadow_radius(shadow_epsilon(spec.delta), 2) * sigma_o, own
-
-
-def sample_antipodal(spec: Spec, team: TeamSpec, rng: np.random.Generator, max_tries: int = 10_000) -> tuple[np.ndarray, np.ndarray]:
-    """Starts and goals of an ``antipodal`` layout, sampled as in the authors' setup
-    (robot i at a random angle within its own sector of width 2π/n, radius
-    U(r_min, r_max), goal = −start), rejection-sampled robot by robot so that every start
-    and goal keeps the clearances of :func:`start_clearances` from the others, the
-    obstacles and the bounds.
-
-    O(N log N) and the same draws as trying robot by robot: the tries of a run of robots
-    are made at once (the workspace clearances of all their candidates in one call, the
-    robot clearances against a :class:`~.neighbours.PointGrid` of the points placed so
-    far); a refused try ends the run, the next run starts from that robot's next draw,
-    and the generator is left exactly as far advanced as the tries used."""
-    from .neighbours import PointGrid
-
-    lay, n = team.layout, team.n
-    robot_gap, obstacle_gap, wall_gap = start_clearances(spec)
-    ws = spec.workspace.build()
-    center = np.asarray(lay.center, dtype=float)
-    starts = np.zeros((n, 2))
-    placed = PointGrid(2 * n, robot_gap)
-    draws = _DrawAhead(rng)
-    i, tries, run = 0, 0, 8
-    while i < n:
-        count = min(run, n - i)
-        u = draws.peek(2 * count)
-        s = _antipodal_offsets(np.arange(i, i + count), u[0::2], u[1::2], n, lay.r_min, lay.r_max)
-        first, second = center + s, center - s
-        both = np.concatenate([first, second])
-        admissible = ((ws.boundary_distance(both) >= wall_gap) & (ws.obstacle_distance(both) >= obstacle_gap)).reshape(2, count).all(axis=0)
-        accepted = placed.accept_run(first, second, admissible)
-        starts[i : i + accepted] = s[:accepted]
-        draws.consume(2 * min(accepted + 1, count))
-        i, tries = (i + accepted, 0) if accepted else (i, tries)
-        if accepted < count:
-            tries += 1
-            if tries >= max_tries:
-                draws.settle()
-                raise ScenarioError("robots.layout", f"room for robot {i} after {max_tries} tries (fewer robots or a larger ring)", n)
-        run = min(2 * run, 4096) if accepted == count else 8
-    draws.settle()
-    return center + starts, center - starts
-
-
-def _antipodal_offsets(robots: np.ndarray, u_angle: np.ndarray, u_radius: np.ndarray, n: int, r_min: float, r_max: float) -> np.ndarray:
-    """``s_i = ρ (cos φ, sin φ)`` with ``φ = 2π(i + u)/n`` and ``ρ = r_min + (r_max − r_min) u'``
-    (what ``rng.uniform(r_min, r_max)`` computes from its draw)."""
-    ang = 2 * np.pi * (robots + u_angle) / n
-    rad = r_min + (r_max - r_min) * u_radius
-    return rad[:, None] * np.column_stack([np.cos(ang), np.sin(ang)])
-
-
-class _DrawAhead:
-    """Uniform draws of ``rng`` read ahead in blocks; :meth:`settle` leaves ``rng``
-    advanced by exactly the draws consumed (``rng.random()`` and ``rng.uniform()`` each
-    take one double of the stream)."""
-
-    def __init__(self, rng: np.random.Generator):
-        self.rng, self.state = rng, rng.bit_generator.state
-        self.buffer, self.used = np.empty(0), 0
-
-    def peek(self, k: int) -> np.ndarray:
-        if self.used + k > len(self.buffer):
-            self.buffer = np.concatenate([self.buffer, self.rng.random(max(k, len(self.buffer)))])
-        return self.buffer[self.used : self.used + k]
-
-    def consume(self, k: int) -> None:
-        self.used += k
-
-    def settle(self) -> None:
-        self.rng.bit_generator.state = self.state
-        self.rng.random(self.used)
-
-
-def initial_layout(spec: Spec, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray, list[slice]]:
-    """Starts and goals ``(N, d)`` of the whole fleet (random layouts drawn from ``rng``)
-    and each team's slice."""
-    teams = spec.team_specs()
-    if len(teams) == 1 and teams[0].layout.kind == "antipodal":
-        starts, goals = sample_antipodal(spec, teams[0], rng)
-        return starts, goals, spec.team_slices()
-    return deterministic_layout(spec)

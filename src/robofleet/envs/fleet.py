@@ -33,7 +33,7 @@ from ..avoidance.safety_filter import (
     SafetyFilter,
     single_integrator_spec,
 )
-from ..avoidance.simulation import World
+from ..avoidance.world import World
 from ..avoidance.spec import Spec
 from ..core.errors import ConfigError
 from ..core.metrics import obstacle_contacts, pair_contacts

@@ -47,7 +47,8 @@ from typing import Any, Callable
 import numpy as np
 
 from ..avoidance.metrics import ControllerCounts, run_results
-from ..avoidance.simulation import World, team_covariance
+from ..avoidance.cell_model import team_covariance
+from ..avoidance.world import World
 from ..core import metrics as core_metrics
 from ..core.errors import ConfigError, short_repr
 from ..core.rng import as_generator, keyed_generator, resolve_seed

@@ -1,7 +1,7 @@
-"""Detours around neighbours that hold still (one of the liveness rules
-that get every robot home, docs/theory/buavc.md "Liveness rules").
+"""Detour stage: re-plan around neighbours that hold still (docs/theory/buavc.md
+"Navigation stages").
 
-The static roadmap (:mod:`.navigation`) knows only the map. A parked robot that sits in
+The route stage's static roadmap (:mod:`.route`) knows only the map. A parked robot that sits in
 the gap between two obstacles, or a robot stuck there, closes that gap as surely as an
 obstacle would, yet the roadmap keeps sending the robots behind it into the gap. Here a
 *blocked* robot treats the neighbours it sees holding still as temporary obstacles and
@@ -10,9 +10,9 @@ roadmap) with a disc around each of them; when a still neighbour closes a gap, t
 goes round the other way. The idea and its thresholds are ours; all of it is
 decentralized and communication-free:
 
-* **Still** (:class:`.liveness.StillTracker`): an estimate that stays within ``still_radius`` of its
+* **Still** (:class:`.yielding.StillTracker`): an estimate that stays within ``still_radius`` of its
   running mean (time constant ``still_steps / 2``) for ``still_steps`` consecutive steps,
-  the test the yielding rule uses for parked robots (:class:`.liveness.ParkingState`).
+  the test the yielding rule uses for parked robots (:class:`.yielding.ParkingState`).
   A robot applies it to its own estimate (am I blocked?) and to the estimates of the
   neighbours in its local box R_loc (who holds still?).
 * **Blocked**: a robot that has not arrived, whose own estimate has held still for
@@ -26,11 +26,13 @@ decentralized and communication-free:
   a neighbour closer than that to the goal is left out (it is parked on or near the
   goal and the yielding rule moves it).
 
-The detour sub-goal only replaces the sub-goal the controller projects onto the cell, so
-every command stays inside the robot's B-UAVC cell: the chance constraint is untouched.
-Single and double integrators use it; unicycles do not (as with the right-hand rule, it
-made the differential-drive ground robots of the mixed team worse).
-Only blocked robots re-plan, so the cost is a few small graphs per step.
+What the stage guarantees: the detour sub-goal only replaces the route's sub-goal, which
+the model's cell-keeping controller keeps inside the cell (the chance constraint is
+untouched); a detour lasts at most ``steps`` steps; the path it follows is the shortest on
+the visibility graph of the map and the discs, so with the still neighbours as they are it
+reaches the goal whenever the graph connects them. Single and double integrators use it;
+unicycles do not (:mod:`.pipeline`). Only blocked robots re-plan, so the cost is a few
+small graphs per step. Measured effects: docs/results/avoidance.md "Measurements behind the navigation stages".
 """
 
 from __future__ import annotations
@@ -42,19 +44,30 @@ from scipy.sparse.csgraph import dijkstra
 from scipy.spatial import cKDTree
 from shapely.geometry import Point
 
-from . import navigation
-from .liveness import LivenessParams, StillTracker
-from .navigation import Halfplanes, halfplanes, segments_free
+from . import route
+from .route import Halfplanes, halfplanes, segments_free
+from .yielding import StillTracker, YieldingParams
 
 _EPS = 1e-9
 
 
 @dataclass(frozen=True)
 class DetourParams:
-    """The detour rule's own thresholds (module docstring); the still test and the length
-    of a detour come from :class:`.liveness.LivenessParams` (``still_radius``,
-    ``still_steps``, ``detour_steps``), shared with the yielding rule."""
+    """The detour stage's parameter block (module docstring); the still test comes from
+    :class:`.yielding.YieldingParams` (``still_radius``, ``still_steps``), shared with the
+    yielding stage.
 
+    Attributes
+    ----------
+    enabled: blocked robots re-plan around neighbours that hold still.
+    steps: the most steps one re-plan lasts.
+    block_steps: steps a robot's own estimate must hold still before it re-plans.
+    node_factor: the discs' nodes lie ``node_factor`` × the pair clearance from each neighbour.
+    sight_factor: sight lines keep ``sight_factor`` × the pair clearance from each neighbour.
+    """
+
+    enabled: bool = True
+    steps: int = 300
     block_steps: int = 30
     node_factor: float = 1.15
     sight_factor: float = 0.9
@@ -101,7 +114,7 @@ def _pair_lengths(a: np.ndarray, b: np.ndarray, planes: list[Halfplanes], seen_a
     return np.where(free, np.linalg.norm(a[ia] - b[ib], axis=1), np.inf).reshape(len(a), len(b))
 
 
-def detour_graph(roadmap: navigation.Roadmap, estimate: np.ndarray, goal: np.ndarray, centres: np.ndarray,
+def detour_graph(roadmap: route.Roadmap, estimate: np.ndarray, goal: np.ndarray, centres: np.ndarray,
                  radius: float, params: DetourParams) -> DetourGraph:
     """The graph of :func:`detour_subgoal` for one robot: static nodes outside the
     discs' sight polygons plus each disc's vertices at ``node_factor · radius`` (inside
@@ -117,7 +130,7 @@ def detour_graph(roadmap: navigation.Roadmap, estimate: np.ndarray, goal: np.nda
     ok = np.all((extra >= lo) & (extra <= hi), axis=1) & ~_inside(extra, roadmap.grown_planes) & ~_inside(extra, disc_planes)
     ends = np.vstack([estimate, goal, extra[ok]])
     seen = ends.copy()  # the estimate and the goal are seen from where they leave the sight polygons
-    seen[:2] = navigation.exit_points(ends[:2], roadmap.sight)
+    seen[:2] = route.exit_points(ends[:2], roadmap.sight)
     both = [roadmap.sight, disc_planes]
     v = len(static)
     n = len(ends) + v
@@ -158,7 +171,7 @@ def remembered_obstacles(estimates: np.ndarray, still: np.ndarray, i: int, memor
     return np.vstack([estimates[seen], out_of_sight])
 
 
-def detour_subgoal(roadmap: navigation.Roadmap, estimate: np.ndarray, goal: np.ndarray, obstacles: np.ndarray,
+def detour_subgoal(roadmap: route.Roadmap, estimate: np.ndarray, goal: np.ndarray, obstacles: np.ndarray,
                    radius: float, params: DetourParams) -> tuple[np.ndarray | None, float]:
     """The first point of the shortest path around the ``obstacles`` (discs of
     ``radius``) and the path length left after it; ``(None, inf)`` without a path."""
@@ -172,10 +185,10 @@ class Detours:
     (its latch; the still counts are what each robot computes from the estimates it sees,
     identical for all robots that see the same estimates, so one tracker serves all)."""
 
-    def __init__(self, roadmap: navigation.Roadmap, goals: np.ndarray, pair_clearance: float, local_box: float,
-                 rules: LivenessParams, params: DetourParams = DetourParams()):
+    def __init__(self, roadmap: route.Roadmap, goals: np.ndarray, pair_clearance: float, local_box: float,
+                 params: DetourParams = DetourParams(), stillness: YieldingParams = YieldingParams()):
         self.roadmap, self.goals, self.radius, self.local_box = roadmap, goals, pair_clearance, local_box
-        self.rules, self.params = rules, params
+        self.rules, self.params = stillness, params
         self.tracker = StillTracker.initial(len(goals))
         self.left = np.zeros(len(goals), np.int32)
         self.active = np.zeros(len(goals), bool)
@@ -187,7 +200,7 @@ class Detours:
         counts = self.tracker.observe(estimates, rules.still_radius, rules.still_steps)
         still = counts >= rules.still_steps
         start = ~arrived & (counts >= p.block_steps) & (self.left <= 0) & self._sees_still(estimates, still)
-        self.left[start] = rules.detour_steps
+        self.left[start] = p.steps
         self.left[arrived] = 0
         for i in np.flatnonzero(self.left <= 0):
             self.memory[i] = self.memory[i][:0]

@@ -1,41 +1,31 @@
-"""Liveness for B-UAVC: rules that get every robot home (docs/theory/buavc.md "Liveness rules").
+"""Yielding stage: arrived robots step aside for neighbours that wait to pass, and return
+(docs/theory/buavc.md "Navigation stages").
 
-The authors' controllers (docs/theory/buavc.md "Controllers", "Deadlock heuristic") stop a
-robot for good at its goal and react to a deadlock only after it is detected, with a
-90° goal rotation or a detour to one vertex of the blocking obstacle. Four rules, all
-decentralized and communication-free, replace that where it fails:
+The authors' controllers stop a robot for good at its goal, so a robot parked on a goal
+in a passage blocks whoever needs that passage. Here a parked robot whose neighbour
+lingers within ``near`` steps aside — away from that neighbour and ``aside_turn`` to its
+left, the side a right-hand neighbour does not take — stays aside while the neighbour
+lingers, returns to its goal when the way is clear, and backs off exponentially.
 
-1. **Roadmap sub-goals** (:mod:`.navigation`): a robot steers to the next vertex of its
-   shortest path around the known obstacles instead of to its goal, so a box between a
-   robot and its goal is never a local minimum (this replaces the appendix-C vertex
-   branch; progress is measured along that path).
-2. **The right-hand rule** (Zhou et al., RA-L 2017, for BVC): a driving robot whose
-   projected goal lies on a face shared with a neighbour, within ``face_near`` of its
-   estimate, turns its goal clockwise by ``right_hand_angle`` (:func:`right_hand_goals`);
-   as every robot veers the same way, head-on pairs pass and crowds that meet at one
-   point circulate as in a roundabout. Not for unicycles (measured: their
-   three-projection controller then drives arcs into the walls: on diff_drive seeds
-   0–19, 16/20 successes with the turn against 19/20 without; seeds 20–59, 29/40 with
-   all rules against 38/40 for the paper's controller).
-3. **Arrived robots yield** (:func:`parking_targets`; the idea of the issue's
-   prototype, the rule and its thresholds ours): a parked robot whose neighbour lingers
-   within ``near`` steps aside — away from that neighbour and ``aside_turn`` to its left,
-   the side a right-hand neighbour does not take — stays aside while the neighbour
-   lingers, returns to its goal when the way is clear, and backs off exponentially, so
-   two parked robots never yield to each other for ever. A run ends (and succeeds) only
-   when every robot has arrived and none is away from its goal on a yield
-   (:meth:`ParkingState.settled`).
-4. **Detours around still neighbours** (:mod:`.detour`, ours): a blocked robot treats
-   the neighbours it sees holding still (parked or stuck) as discs of the pair clearance
-   and re-plans its roadmap route around them, so a gap a parked robot closes is passed
-   the other way round (``detour``, ``detour_steps``).
+Rule (per robot, every step; :func:`parking_targets`):
 
-A robot uses only its own estimate and goal, the map, and the estimates of the
-neighbours it sees (those in its local box R_loc). Every target is projected onto the
-robot's own cell (:func:`~robofleet.avoidance.projection.project_onto_cells`), or
-handed to the model's own cell-keeping controller, so the command keeps the next
-position inside the cell exactly as the paper's controller does: the chance constraint
-is never traded for liveness.
+* a neighbour *lingers* when its estimate lies within ``near`` of the robot's and it does
+  not hold still (:class:`StillTracker`: within ``still_radius`` of its running mean
+  ``m ← m + (2/still_steps)(p̂ − m)`` for ``still_steps`` steps: parked, most likely);
+* HOLD → YIELD once the leaky linger count reaches ``2^k · linger_steps`` after the
+  robot's k-th yield; the target is ``g + aside · R(aside_turn) ā`` with ``ā`` the mean
+  unit direction away from the lingering neighbours, pulled back to within ``max_aside``
+  of the goal;
+* YIELD → RETURN after ``clear_steps`` steps with nobody near, or ``max_yield_steps``
+  steps aside; RETURN → HOLD when the estimate is within the goal tolerance, or after
+  ``return_steps`` steps.
+
+What the stage guarantees: it only chooses targets; the model's cell-keeping controller
+keeps every next position inside the cell. The back-off doubles the linger count a robot
+needs after each of its yields, so two parked robots that see each other linger yield a
+finite number of times per ``2^k`` growth, never in lock-step for ever. A robot uses only
+its own estimate and goal and the estimates of the neighbours in its local box R_loc.
+Measured effects: docs/results/avoidance.md "Measurements behind the navigation stages".
 """
 
 from __future__ import annotations
@@ -45,20 +35,16 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
-from .cell import Kind
-from .projection import project_onto_cells
-
 HOLD, YIELD, RETURN = 0, 1, 2
 
 
 @dataclass(frozen=True)
-class LivenessParams:
-    """Parameters of the liveness rules (module docstring).
+class YieldingParams:
+    """The yielding stage's parameter block (module docstring).
 
     Attributes
     ----------
-    enabled: whether the liveness rules run at all (off: the paper's controller).
-    roadmap: steer to roadmap sub-goals around the obstacles (:mod:`.navigation`).
+    enabled: arrived robots yield (off: they hold at their goals, as in the paper).
     near: neighbour distance [m] that counts as lingering near a parked robot.
     linger_steps: consecutive steps a neighbour must linger before the robot yields
         (or, while it yields, before it moves further aside).
@@ -66,28 +52,17 @@ class LivenessParams:
     max_aside: largest distance [m] from its goal a yielding robot goes.
     aside_turn: how far [deg] the step aside turns counter-clockwise from straight away.
     clear_steps: steps without any neighbour within ``near`` before it returns.
-    max_yield_steps: most steps one yield lasts (two parked robots that see each other
-        never clear).
+    max_yield_steps: most steps one yield lasts.
     still_radius, still_steps: a neighbour whose estimate stays within ``still_radius``
         [m] of its running mean for ``still_steps`` steps holds still (parked, most
-        likely) and is not yielded to (about 4σ at the shipped σ = 0.1 m). Used for
-        single integrators only: a blocked single integrator keeps moving at full speed,
-        a blocked double integrator or unicycle comes to rest and would look parked.
-    return_steps: most steps it drives back to its goal before holding again.
-    right_hand_angle: how far [deg] a robot blocked by a neighbour turns its goal clockwise.
-    face_near: a neighbour's face closer than this [m] to the estimate counts as blocking.
-    detour: blocked robots re-plan around neighbours that hold still (:mod:`.detour`).
-    detour_steps: the most steps one such re-plan lasts.
-    passage_sigmas: the roadmap closes gaps between obstacles narrower than
-        1.8 × (the cells' clearance + this many σ of the position estimate), which a
-        jittering estimate cannot pass (:mod:`.navigation`).
-    band_sigmas: a single integrator whose estimate lies more than this many σ beyond an
-        obstacle face of its cell steers back into the cell first
-        (:func:`~robofleet.avoidance.controller.single_integrator_control`).
+        likely) and is not yielded to (about 4σ at the shipped σ = 0.1 m). The detour
+        stage shares the test. Models whose blocked robots come to rest (double
+        integrators, unicycles) use radius 0: holding still does not tell a parked
+        neighbour from a blocked one there.
+    return_steps: most steps a robot drives back to its goal before holding again.
     """
 
-    enabled: bool = False
-    roadmap: bool = True
+    enabled: bool = True
     near: float = 1.5
     linger_steps: int = 30
     aside: float = 0.6
@@ -98,12 +73,6 @@ class LivenessParams:
     still_radius: float = 0.4
     still_steps: int = 50
     return_steps: int = 200
-    right_hand_angle: float = 45.0
-    face_near: float = 0.5
-    detour: bool = True
-    detour_steps: int = 300
-    passage_sigmas: float = 1.5
-    band_sigmas: float = 2.0
 
 
 @dataclass
@@ -141,16 +110,10 @@ class ParkingState:
     yields: np.ndarray
     stillness: StillTracker  # what the neighbours see of each robot's estimate
 
-    def observe(self, estimates: np.ndarray, params: LivenessParams) -> np.ndarray:
+    def observe(self, estimates: np.ndarray, params: YieldingParams) -> np.ndarray:
         """Update what the neighbours see of each robot and return which robots look
         parked: held still (:class:`StillTracker`) for ``still_steps`` steps."""
         return self.stillness.observe(estimates, params.still_radius, params.still_steps) >= params.still_steps
-
-    def settled(self, estimates: np.ndarray, goals: np.ndarray, tolerance: float) -> bool:
-        """Every robot that is stepping aside or returning is still (or again) within
-        ``3 · tolerance`` of its goal by its estimate."""
-        away = np.linalg.norm(estimates - goals, axis=1) > 3 * tolerance
-        return not bool(np.any((self.mode != HOLD) & away))
 
     @classmethod
     def initial(cls, n: int, dim: int = 2) -> ParkingState:
@@ -189,7 +152,7 @@ def aside_points(origin: np.ndarray, goals: np.ndarray, away: np.ndarray, aside:
 
 
 def parking_targets(estimates: np.ndarray, goals: np.ndarray, parked: np.ndarray, state: ParkingState,
-                    params: LivenessParams, local_box: float = np.inf, tolerance: float = 0.1) -> tuple[np.ndarray, np.ndarray]:
+                    params: YieldingParams, local_box: float = np.inf, tolerance: float = 0.1) -> tuple[np.ndarray, np.ndarray]:
     """Advance the yielding rule one step; return each parked robot's target and which
     parked robots move this step (``(N, 2)``, ``(N,)``; rows of robots not parked are
     their goals and ``False``).
@@ -217,7 +180,7 @@ def parking_targets(estimates: np.ndarray, goals: np.ndarray, parked: np.ndarray
     state:
         The rule's memory, updated in place.
     params:
-        :class:`LivenessParams`.
+        :class:`YieldingParams`.
     local_box:
         Half-width R_loc of the box within which a robot sees neighbours.
     tolerance:
@@ -248,56 +211,3 @@ def parking_targets(estimates: np.ndarray, goals: np.ndarray, parked: np.ndarray
     target = np.where((state.mode == YIELD)[:, None], state.target, goals)
     away = np.linalg.norm(estimates - goals, axis=1) > 3 * tolerance  # e.g. pushed off by noise-driven drift
     return target, parked & ((state.mode != HOLD) | away)
-
-
-def blocked_by_robot(estimates: np.ndarray, active: np.ndarray, cells, near: float) -> np.ndarray:
-    """``(N,)``: an active constraint at the projected goal is a face shared with a
-    neighbour (:attr:`Kind.ROBOT`) and the robot's estimate lies within ``near`` of it."""
-    rows = np.arange(len(estimates))[:, None]
-    act = np.maximum(active, 0)
-    a, b = cells.A[rows, act], cells.b[rows, act]  # (N, 2, 2), (N, 2)
-    gap = (b - np.einsum("nkc,nc->nk", a, estimates)) / np.maximum(np.linalg.norm(a, axis=-1), 1e-12)
-    robot_face = (active >= 0) & (cells.kind[rows, act] == Kind.ROBOT) & (gap < near)
-    return robot_face.any(axis=1)
-
-
-def right_hand_goals(estimates: np.ndarray, goals: np.ndarray, angle: float) -> np.ndarray:
-    """The goals turned clockwise by ``angle`` [rad] about each robot: every robot that a
-    neighbour blocks veers the same way (the right-hand rule of Zhou et al., RA-L 2017),
-    so a crowd crossing one point turns into a roundabout."""
-    c, s = np.cos(angle), np.sin(angle)
-    turn = np.array([[c, s], [-s, c]])
-    return (goals - estimates) @ turn.T + estimates
-
-
-def steering_goals(estimates: np.ndarray, goals: np.ndarray, arrived: np.ndarray, cells, params: LivenessParams,
-                   parking: ParkingState, local_box: float = np.inf, navigation=None, tolerance: float = 0.1) -> tuple[np.ndarray, np.ndarray]:
-    """The goals a team of double integrators or unicycles steers to this step under the
-    liveness rules, and which arrived robots move (``(N, 2)``, ``(N,)``).
-
-    The same rules as the single-integrator controller
-    (:func:`~robofleet.avoidance.controller.single_integrator_control`): the roadmap
-    sub-goal instead of the goal (``navigation``), the right-hand turn when a
-    neighbour's face blocks the projected goal, and yielding by arrived robots
-    (:func:`parking_targets`). The model's own controller then projects the result onto
-    the cell, so its in-cell guarantee is unchanged. The turn is not taken when the turned
-    goal projects onto an obstacle's face: in a lane between an obstacle on its right and
-    a neighbour on its left, a double integrator turned into the obstacle and stopped
-    there (measured, ``double_integrator`` seeds 0–199: 197/200 with every turn, 200/200
-    without the turns onto an obstacle's face).
-    """
-    heading = goals if navigation is None else navigation.step(estimates, arrived)[0]
-    proj = project_onto_cells(heading, cells)
-    turn = ~arrived & ~proj.empty & blocked_by_robot(estimates, proj.active, cells, params.face_near)
-    if params.right_hand_angle > 0 and turn.any():
-        turned = right_hand_goals(estimates, heading, np.deg2rad(params.right_hand_angle))
-        turn &= ~on_obstacle_face(project_onto_cells(turned, cells).active, cells)
-        heading = np.where(turn[:, None], turned, heading)
-    parked_target, moving = parking_targets(estimates, goals, arrived, parking, params, local_box, tolerance)
-    return np.where(arrived[:, None], parked_target, heading), moving
-
-
-def on_obstacle_face(active: np.ndarray, cells) -> np.ndarray:
-    """``(N,)``: an active constraint of the projection is an obstacle's face."""
-    rows = np.arange(len(active))[:, None]
-    return np.any((active >= 0) & (cells.kind[rows, np.maximum(active, 0)] == Kind.OBSTACLE), axis=1)

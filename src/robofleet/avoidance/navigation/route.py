@@ -1,46 +1,46 @@
-"""Sub-goals at visible vertices of the grown obstacles: a static visibility roadmap
-(the "sub-goals on the cell boundary / at obstacle vertices" idea, made
-global).
+"""Route stage: sub-goals at visible vertices of the grown obstacles, a static visibility
+roadmap with passages and exit points (docs/theory/buavc.md "Navigation stages").
 
-The appendix-C obstacle branch (docs/theory/buavc.md "Deadlock heuristic") sends a stuck robot
-to one vertex of the obstacle blocking it; behind a row of boxes that vertex can lead into
-the next trap. Here each robot steers, from the start, towards the next vertex of its
+The appendix-C obstacle branch (docs/theory/buavc.md "Deadlock heuristic") sends a stuck
+robot to one vertex of the obstacle blocking it; behind a row of boxes that vertex can lead
+into the next trap. Here each robot steers, from the start, towards the next vertex of its
 shortest obstacle-free path. The obstacles are the known, static map that B-UAVC already
-assumes (their nominal positions; the ε-shadow covers their uncertainty), so this costs
-no communication and nothing about other robots: a robot uses only its own estimate, its
-goal and the map.
+assumes (their nominal positions; the ε-shadow covers their uncertainty), so this costs no
+communication and nothing about other robots: a robot uses only its own estimate, its goal
+and the map.
 
-* **Nodes** are the vertices of every obstacle grown by ``margin`` (round joins) — a little
-  more than the whole clearance the cells keep (r_s + the chance buffer + the ε-shadow),
+* **Nodes** are the vertices of every obstacle grown by ``node_factor · c`` (round joins),
+  with ``c`` the whole clearance the cells keep (r_s + the chance buffer + the ε-shadow),
   so a robot can reach them — leaving out those outside the workspace bounds shrunk by
-  the same clearance and those inside another grown obstacle.
+  ``c`` and those inside another grown obstacle.
 * **Visibility**: a segment is free when it does not cross the interior of any obstacle
-  grown by ``sight_margin`` (less than ``margin``, so that the edges of a grown polygon
-  and segments grazing it count as free). Convex obstacles are tested with the
-  parametric clipping of a segment against half-planes (Cyrus & Beck 1978).
-* **Seeing from inside the band** (:func:`exit_points`): a robot that hugs its cell's
-  obstacle face has its estimate inside a sight polygon much of the time, and from
-  there every segment is blocked. Its segments, and a goal's, start at the point where
-  it leaves that polygon through the nearest face. Without this such a robot saw
-  nothing, kept steering to a goal behind the obstacle and slid to and fro along the
-  face (measured: the commonest of the remaining random-scenario failures).
+  grown by ``sight_factor · c`` (less than the nodes' margin, so that the edges of a grown
+  polygon and segments grazing it count as free). Convex obstacles are tested with the
+  parametric clipping of a segment against half-planes (Cyrus & Beck 1978):
+  ``x(t) = a + t (b − a)``, ``t ∈ [t_in, t_out]`` with ``t_in = max_{nₖ·d<0} −(nₖ·a − cₖ)/(nₖ·d)``,
+  ``t_out = min_{nₖ·d>0} −(nₖ·a − cₖ)/(nₖ·d)``; the segment crosses when ``t_out > t_in``.
+* **Exit points** (:func:`exit_points`): a robot that hugs its cell's obstacle face has its
+  estimate inside a sight polygon much of the time, and from there every segment is
+  blocked. Its segments, and a goal's, start where it leaves that polygon through the
+  nearest face.
 * **Passages** (:func:`gap_blockers`): a gap between two obstacles narrower than
-  ``1.8 (clearance + passage)``, with ``passage`` a margin for the estimate's noise
-  (``liveness.passage_sigmas`` σ, set by the simulation), leaves the estimate no room to
-  jitter in its cell; a thin wall across it, along the shortest segment between the two
-  obstacles, closes it to every sight line. Elsewhere nodes and sight lines stay where
-  the cells' clearance puts them.
-* **Cost to go** ``D_i(v)``: node-to-node shortest paths (Dijkstra from every node,
-  once per workspace) closed with the free segments to each goal, once per run
+  ``gap_factor (c + passage_sigmas σ)`` leaves the estimate no room to jitter in its cell;
+  a thin wall along the shortest segment between the two obstacles closes it to every
+  sight line.
+* **Cost to go** ``D_i(v)``: node-to-node shortest paths (Dijkstra from every node, once
+  per workspace) closed with the free segments to each goal, once per run
   (:meth:`Roadmap.costs_to_goals`).
 * **Sub-goal** each step: among the nodes and the goal visible from the estimate ``p̂``,
-  the one minimising ``‖p̂ − v‖ + D_i(v)`` (the goal itself when it is visible and
-  nearest; the goal, too, when nothing is visible, e.g. with the estimate inside a
-  grown obstacle).
+  the one minimising ``‖p̂ − v‖ + D_i(v)`` (the goal itself when it is visible and nearest;
+  the previous sub-goal when nothing is visible, e.g. with the estimate inside a grown
+  obstacle).
 
-The sub-goal only replaces the goal that the controller projects onto the cell, so every
-command still keeps the next position inside the robot's cell (the chance constraint is
-untouched).
+What the stage guarantees: the route's sub-goal only replaces the target the model's
+cell-keeping controller is handed, so every command still keeps the next position inside
+the robot's cell (the chance constraint is untouched); with nothing but static obstacles
+in the way, the sub-goal's cost to go ``‖p̂ − v‖ + D_i(v)`` is the length of the shortest
+free path on the roadmap, so a box between a robot and its goal is never a local minimum.
+Measured effects: docs/results/avoidance.md "Measurements behind the navigation stages".
 """
 
 from __future__ import annotations
@@ -54,6 +54,26 @@ from shapely.geometry import Polygon
 from shapely.ops import nearest_points
 
 _EPS = 1e-9
+
+
+@dataclass(frozen=True)
+class RouteParams:
+    """The route stage's parameter block (module docstring).
+
+    Attributes
+    ----------
+    enabled: steer to roadmap sub-goals around the obstacles.
+    passage_sigmas: the noise margin of the passages, in σ of the position estimate.
+    node_factor: the nodes lie ``node_factor × c`` from the obstacles.
+    sight_factor: sight lines keep ``sight_factor × c`` from the obstacles.
+    gap_factor: gaps narrower than ``gap_factor × (c + passage_sigmas σ)`` are closed.
+    """
+
+    enabled: bool = True
+    passage_sigmas: float = 1.5
+    node_factor: float = 1.15
+    sight_factor: float = 0.9
+    gap_factor: float = 1.8
 
 
 @dataclass(frozen=True)
@@ -163,14 +183,16 @@ class Roadmap:
         How far the cells keep robots from the obstacles and the walls [m].
     passage:
         The margin [m] for the estimate's noise (module docstring, "Passages"): gaps
-        narrower than ``1.8 (clearance + passage)`` are closed to sight lines.
+        narrower than ``gap_factor (clearance + passage)`` are closed to sight lines.
+    sight_factor, gap_factor:
+        As in :class:`RouteParams`.
     """
 
     def __init__(self, polygons: list[np.ndarray], margin: float, bounds: tuple[float, float, float, float], clearance: float,
-                 passage: float = 0.0):
+                 passage: float = 0.0, sight_factor: float = RouteParams.sight_factor, gap_factor: float = RouteParams.gap_factor):
         grown = grown_polygons(polygons, margin)
         self.grown_planes = halfplanes(grown) if grown else _NO_PLANES
-        sight = grown_polygons(polygons, 0.9 * clearance) + gap_blockers(polygons, 1.8 * (clearance + passage))
+        sight = grown_polygons(polygons, sight_factor * clearance) + gap_blockers(polygons, gap_factor * (clearance + passage))
         self.sight = halfplanes(sight) if polygons else _NO_PLANES
         nodes = np.concatenate(grown) if grown else np.zeros((0, 2))
         lo, hi = np.asarray(bounds[:2]) + clearance, np.asarray(bounds[2:]) - clearance
@@ -218,6 +240,7 @@ class Roadmap:
             return np.full((len(goals), 0), np.inf)
         to_goal = self._visibility(self.nodes, goals, exit_points(goals, self.sight))  # (V, N)
         return np.min(self.node_paths[:, :, None] + to_goal[None, :, :], axis=1).T
+
     def subgoals(self, estimates: np.ndarray, goals: np.ndarray, costs: np.ndarray,
                  seen_goals: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Each robot's sub-goal ``(N, 2)`` — the visible node or goal minimising
@@ -241,29 +264,24 @@ class Roadmap:
         return sub, np.where(use_node, costs[np.arange(n), best], 0.0), goal_free | found
 
 
-class Navigation:
-    """One team's use of the roadmap: its goals' costs to go, computed once.
+class Route:
+    """One team's route stage: its roadmap and its goals' costs to go, computed once.
 
     :meth:`step` returns each robot's sub-goal and its estimated remaining path length
     ``‖p̂ − v‖ + D_i(v)`` (the straight distance when the goal is visible), the progress
-    measure the deadlock detection uses instead of the straight distance to the goal.
+    measure the progress checker uses instead of the straight distance to the goal.
     """
 
-    def __init__(self, roadmap: Roadmap, goals: np.ndarray, detours=None):
-        self.roadmap, self.goals, self.detours = roadmap, goals, detours
+    def __init__(self, roadmap: Roadmap, goals: np.ndarray):
+        self.roadmap, self.goals = roadmap, goals
         self.costs = roadmap.costs_to_goals(goals)
         self.seen_goals = exit_points(goals, roadmap.sight)  # the goals do not move
         self.last = goals.copy(), np.zeros(len(goals))
 
-    def step(self, estimates: np.ndarray, arrived: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    def step(self, estimates: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Sub-goals and remaining path lengths; a robot that sees nothing (its estimate
-        inside a grown obstacle) keeps its previous sub-goal. With ``detours``
-        (:class:`.detour.Detours`) and ``arrived`` given, blocked robots re-plan around
-        the neighbours that hold still."""
+        inside a grown obstacle) keeps its previous sub-goal."""
         sub, rest, seen = self.roadmap.subgoals(estimates, self.goals, self.costs, self.seen_goals)
         sub, rest = np.where(seen[:, None], sub, self.last[0]), np.where(seen, rest, self.last[1])
         self.last = sub, rest
-        to_go = np.linalg.norm(sub - estimates, axis=1) + rest
-        if self.detours is None or arrived is None:
-            return sub, to_go
-        return self.detours.apply(estimates, arrived, sub, to_go)
+        return sub, np.linalg.norm(sub - estimates, axis=1) + rest

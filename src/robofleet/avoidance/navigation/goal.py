@@ -1,0 +1,57 @@
+"""Goal checker: when a robot has reached its goal and whether it is home, shared by every
+model, the simulation, the safety filter's users and the environment.
+
+A robot *reaches* its goal when the estimate it navigates on (the environment: its true
+position) lies within the goal tolerance, ``‖g − p‖ ≤ tol`` (:func:`within_goal`). The
+simulation latches the first time (``arrived``: arrival step, travel time) and tracks
+whether each robot is *home* (:class:`GoalChecker`):
+
+* a robot becomes home at a step where its estimate is within the tolerance and it holds
+  (is not stepping aside or on its way back from a yield);
+* it stops being home when it leaves on a yield (:mod:`.yielding`).
+
+A robot whose return from a yield ran out of time holds where it stands: it is not home
+until its estimate is within the tolerance again. A run ends, and succeeds, only when every
+robot is home (:meth:`GoalChecker.all_home`); ``arrived`` in the results is the share of
+robots home at the end.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+def within_goal(points: np.ndarray, goals: np.ndarray, tolerance: float) -> np.ndarray:
+    """``(N,)``: ``‖g_i − p_i‖ ≤ tolerance``."""
+    return np.linalg.norm(goals - points, axis=1) <= tolerance
+
+
+@dataclass
+class GoalChecker:
+    """Per-robot arrival latch and home flag (module docstring)."""
+
+    tolerance: float
+    arrived: np.ndarray
+    home: np.ndarray
+    within: np.ndarray
+
+    @classmethod
+    def initial(cls, n: int, tolerance: float) -> GoalChecker:
+        return cls(tolerance, np.zeros(n, bool), np.zeros(n, bool), np.zeros(n, bool))
+
+    def observe(self, points: np.ndarray, goals: np.ndarray) -> np.ndarray:
+        """This step's estimates: latch the arrivals (returned, updated in place)."""
+        self.within = within_goal(points, goals, self.tolerance)
+        self.arrived |= self.within
+        return self.arrived
+
+    def settle(self, holding: np.ndarray | bool = True) -> None:
+        """After this step's decisions: robots within the tolerance that hold are home;
+        robots that do not hold (stepping aside, returning) are not."""
+        self.home = (self.home | self.within) & holding
+
+    def all_home(self) -> bool:
+        """Whether every robot is home."""
+        return bool(self.home.all())

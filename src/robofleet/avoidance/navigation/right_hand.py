@@ -1,0 +1,102 @@
+"""Right-hand rule stage: a robot blocked by a neighbour's face veers right
+(docs/theory/buavc.md "Navigation stages"; Zhou et al., RA-L 2017, for BVC).
+
+A driving robot whose projected target lies on a face shared with a neighbour
+(:attr:`~robofleet.avoidance.cell.Kind.ROBOT`), within ``face_near`` of its estimate
+(:func:`blocked_by_robot`), turns its target clockwise about its estimate by ``angle``:
+``t' = R_z(−angle)(t − p̂) + p̂`` (:func:`right_hand_goals`). As every robot veers the
+same way, head-on pairs pass and crowds that meet at one point circulate as in a
+roundabout.
+
+Two forms, by where the stage sits in a model's pipeline
+(:mod:`~robofleet.avoidance.navigation.pipeline`):
+
+* :func:`turned_projection` (after the projection, single integrators): the blocked
+  robots' turned targets are projected onto their cells again; a robot keeps its first
+  projection when the turned one is empty.
+* :func:`turned_targets` (before the model's own controller projects, double
+  integrators): the target is turned unless the turned target projects onto an
+  obstacle's face (in a lane between an obstacle on its right and a neighbour on its
+  left the turn would drive the robot into the obstacle and stop it there).
+
+What the stage guarantees: it only changes the target; the projection, or the model's
+cell-keeping controller, keeps the next position inside the cell. Not for unicycles
+(their three-projection controller drives the turned arcs into the walls). Measured
+effects: docs/results/avoidance.md "Measurements behind the navigation stages".
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..cell import Cells, Kind, cell_rows
+from ..projection import Projection, project_onto_cells
+
+
+@dataclass(frozen=True)
+class RightHandParams:
+    """The right-hand stage's parameter block.
+
+    Attributes
+    ----------
+    angle: how far [deg] a robot blocked by a neighbour turns its target clockwise (0: off).
+    face_near: a neighbour's face closer than this [m] to the estimate counts as blocking.
+    """
+
+    angle: float = 45.0
+    face_near: float = 0.5
+
+
+def blocked_by_robot(estimates: np.ndarray, active: np.ndarray, cells, near: float) -> np.ndarray:
+    """``(N,)``: an active constraint at the projected goal is a face shared with a
+    neighbour (:attr:`Kind.ROBOT`) and the robot's estimate lies within ``near`` of it."""
+    rows = np.arange(len(estimates))[:, None]
+    act = np.maximum(active, 0)
+    a, b = cells.A[rows, act], cells.b[rows, act]  # (N, 2, 2), (N, 2)
+    gap = (b - np.einsum("nkc,nc->nk", a, estimates)) / np.maximum(np.linalg.norm(a, axis=-1), 1e-12)
+    robot_face = (active >= 0) & (cells.kind[rows, act] == Kind.ROBOT) & (gap < near)
+    return robot_face.any(axis=1)
+
+
+def right_hand_goals(estimates: np.ndarray, goals: np.ndarray, angle: float) -> np.ndarray:
+    """The goals turned clockwise by ``angle`` [rad] about each robot."""
+    c, s = np.cos(angle), np.sin(angle)
+    turn = np.array([[c, s], [-s, c]])
+    return (goals - estimates) @ turn.T + estimates
+
+
+def on_obstacle_face(active: np.ndarray, cells) -> np.ndarray:
+    """``(N,)``: an active constraint of the projection is an obstacle's face."""
+    rows = np.arange(len(active))[:, None]
+    return np.any((active >= 0) & (cells.kind[rows, np.maximum(active, 0)] == Kind.OBSTACLE), axis=1)
+
+
+def turned_projection(estimates: np.ndarray, targets: np.ndarray, proj: Projection, cells: Cells, driving: np.ndarray,
+                      params: RightHandParams) -> Projection:
+    """``proj`` with the blocked ``driving`` robots' targets turned right and projected
+    again (only their rows are projected)."""
+    turn = blocked_by_robot(estimates, proj.active, cells, params.face_near) & driving & ~proj.empty
+    if not turn.any():
+        return proj
+    rows = np.flatnonzero(turn)
+    goals = right_hand_goals(estimates[rows], targets[rows], np.deg2rad(params.angle))
+    turned = project_onto_cells(goals, cell_rows(cells, rows))
+    keep = rows[~turned.empty]
+    point, active = proj.point.copy(), proj.active.copy()
+    point[keep], active[keep] = turned.point[~turned.empty], turned.active[~turned.empty]
+    return Projection(point, proj.empty, active)
+
+
+def turned_targets(estimates: np.ndarray, targets: np.ndarray, cells: Cells, driving: np.ndarray,
+                   params: RightHandParams) -> np.ndarray:
+    """The targets of the blocked ``driving`` robots turned right, unless the turned target
+    projects onto an obstacle's face."""
+    proj = project_onto_cells(targets, cells)
+    turn = driving & ~proj.empty & blocked_by_robot(estimates, proj.active, cells, params.face_near)
+    if params.angle <= 0 or not turn.any():
+        return targets
+    turned = right_hand_goals(estimates, targets, np.deg2rad(params.angle))
+    turn &= ~on_obstacle_face(project_onto_cells(turned, cells).active, cells)
+    return np.where(turn[:, None], turned, targets)
