@@ -12,7 +12,8 @@ Methods share this code path and differ only in what the cells use (:class:`Meth
 * ``buavc``: Σ, Σ_o and the chance buffers (δ) — the B-UAVC of Sec. 4;
 * ``bvc``: Σ = Σ_o = 0, buffer r_s (Zhou et al. 2017);
 * ``bvc_inflated``: Σ = Σ_o = 0 and radius ``r_s + k σ_max`` (k = ``inflation_sigmas``);
-* ``orca``: no cells; ORCA velocities (van den Berg et al. 2011) for 2-D single integrators.
+* ``orca``: no cells; ORCA velocities (van den Berg et al. 2011) for 2-D single integrators,
+  with the obstacles and walls as RVO2 handles them (:mod:`.orca_obstacles`).
 
 Controllers, per team: single integrators — the one-step controller with the deadlock
 heuristic of appendix C (:mod:`.controller`); double integrators — the braking rule
@@ -73,6 +74,7 @@ from .mpc import BuavcMPC, GoalRotation, SingleIntegratorParams
 from .navigation import Navigation, Roadmap
 from .obstacles import ObstacleSet, wall_planes
 from .orca import orca_velocities, preferred_velocities
+from .orca_obstacles import ObstacleEdges
 from .projection import project_onto_cells
 from .segment_cells import with_braking_segments
 from .spec import Space3DSpec, Spec, TeamSpec, initial_layout
@@ -490,6 +492,7 @@ class World:
         self.n = len(self.starts)
         teams = spec.team_specs()
         self.cell_model = None if spec.method == "orca" else cell_model(spec, self.setup)
+        self.orca_obstacles = ObstacleEdges.from_workspace(spec.workspace.build()) if spec.method == "orca" else None
         self.liveness = LivenessParams(**spec.liveness.model_dump())
         self.groups = [make_group(spec, team, sl, self.starts[sl], self.goals[sl], self.detour_vertices(team))
                        for team, sl in zip(teams, slices)]
@@ -726,12 +729,13 @@ class World:
 
     def orca_control(self, estimates: np.ndarray) -> np.ndarray:
         """ORCA velocities (van den Berg et al. 2011) for all robots, preferring the goal at
-        full speed; arrived robots prefer to stand still."""
+        full speed, avoiding the nominal obstacles and the walls; arrived robots prefer to
+        stand still."""
         for g in self.groups:
             g.arrived |= np.linalg.norm(self.goals[g.index] - estimates[g.index], axis=1) <= self.spec.goal_tolerance
         arrived = self.arrived()
         pref = np.where(arrived[:, None], 0.0, preferred_velocities(estimates, self.goals, self.v_max, self.dt))
-        v, _ = orca_velocities(estimates, self.velocity, pref, self.radius, self.v_max, self.spec.orca, self.dt)
+        v, _ = orca_velocities(estimates, self.velocity, pref, self.radius, self.v_max, self.spec.orca, self.dt, self.orca_obstacles)
         return v
 
     # -- moving ---------------------------------------------------------------------------
