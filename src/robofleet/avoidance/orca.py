@@ -13,6 +13,9 @@ agents in parallel, :func:`orca_velocities`):
    vector from ``v`` to the closest point of ``∂VO^τ`` and ``n`` the outward normal
    there; ``ORCA_A = {v' : (v' − (v_A + u/2))·n ≥ 0}``. Agents already overlapping use
    the cut-off disc ``D(p/Δt, r/Δt)`` (resolve within one step).
+   Static polygon obstacles and walls (:mod:`.orca_obstacles`, Sec. 5 and RVO2) add one
+   half-plane per visible edge within ``τ_o v_max + r``, which the agent keeps alone (no
+   factor ½); they come first.
 3. *Velocity selection* (Eq. (6), Sec. 5.1): the velocity nearest to ``v_pref`` in
    ``D(0, v_max) ∩ ⋂ ORCA``, by the incremental 2-D linear program of the paper: take
    the optimum so far; when the next half-plane excludes it, the new optimum lies on
@@ -23,7 +26,13 @@ agents in parallel, :func:`orca_velocities`):
    same incremental scheme — when half-plane k is violated by more than the current
    maximum, the new optimum makes k the largest violation, i.e. it maximises ``n_k·v``
    over the disc and the lines ``{v : n_j·(q_j − v) ≤ n_k·(q_k − v)}``, j < k (a 2-D
-   program with a linear objective).
+   program with a linear objective). The obstacles' half-planes stay hard constraints of
+   every such program: only the agents' are traded.
+
+With exact positions and ``τ_o ≥ Δt``, a robot whose obstacle half-planes are feasible
+moves, over the step, only along velocities outside every visible edge's velocity
+obstacle, so it never comes closer than its radius to an obstacle or a wall
+(``tests/avoidance/test_orca_obstacles.py`` checks it on random scenes).
 
 The vectorized forms :func:`orca_halfplanes`, :func:`solve_velocity_lp` and
 :func:`least_violation_velocities` (exact enumeration of the optimality conditions) are

@@ -37,6 +37,26 @@ on the forbidden side of an earlier obstacle line (as RVO2 does; tolerance
 side are visited: edges that face away are covered by the ones that face A, and farther
 edges cannot be reached within ``τ_o``.
 
+**Why a robot stays out.** Let A start the step at least ``r`` from every obstacle, with
+exact positions and ``Δt ≤ τ_o``, and let its new velocity ``v'`` satisfy every obstacle
+line. (i) A truncated velocity obstacle ``K`` is convex (``[a, b] ⊕ D(0, r)`` is, and so
+is the union of its scalings by ``s ≥ 1/τ_o``) and closed under scaling by ``λ ≥ 1``, so
+every line supporting it at a point ``q`` has ``n·q ≤ 0``: the origin is on the allowed
+side. (ii) Hence the covered test is sound: an earlier line with the origin on its allowed
+side that leaves both cut-off discs (and so their convex hull, ``K``'s cut-off) on the
+forbidden side leaves all of ``K``, which lies farther out from the origin (up to
+:data:`COVERED_TOL` · Δt of depth). (iii) A motion that first meets the grown obstacles
+within ``Δt`` meets them within ``v_max Δt + r ≤ R`` at a grown edge or a vertex arc whose
+normal faces A, so A is strictly on the free side of that edge (or of one edge of that
+vertex): a visited edge. (iv) Each visited edge's line supports its ``K`` (a leg at a
+non-convex vertex, or a foreign leg, belongs to the neighbouring edge's velocity obstacle,
+whose own line is the constraint there). So ``v'`` is outside every velocity obstacle that
+could bring A within ``r`` of an obstacle before ``τ_o ≥ Δt``.
+``tests/avoidance/test_orca_obstacles.py`` backs this with random walled scenes (convex
+and non-convex polygons, thin boxes, radius and speed drawn per robot, fallbacks).
+When the obstacle lines alone are infeasible (A wedged where its disc barely fits), the
+fallback minimises their largest violation too, and nothing is guaranteed.
+
 **Where the lines go.** The obstacle lines come first in the 2-D program and stay hard
 constraints in the 3-D fallback (Sec. 5.2), which relaxes only the agents' lines, as RVO2
 does: a robot gives up reciprocity before it gives up an obstacle.
