@@ -87,7 +87,7 @@ def own_obstacle_lines(obstacles, p, v, r, reach, params):
     """The obstacle lines ``(q, n)`` of one robot, from the kernel's own functions."""
     arrays = obstacles.arrays(reach)
     dist, found = np.empty(obstacles.count), np.empty(obstacles.count, np.int64)
-    count = nearby_edges(p[0], p[1], reach, arrays[0], arrays[1], *arrays[5:], dist, found)
+    count = nearby_edges(p[0], p[1], reach, arrays[0], arrays[1], *arrays[5:12], dist, found)
     lines = np.empty((obstacles.count, 4))
     m = obstacle_lines(p[0], p[1], v[0], v[1], r, params.time_horizon_obst, found, count, *arrays[:5], lines)
     return lines[:m, :2], lines[:m, 2:]
@@ -110,7 +110,7 @@ def test_a_robot_pressed_against_a_wall_by_a_crowd_gives_way_to_the_crowd_not_th
 @pytest.mark.parametrize("seed", range(4))
 def test_the_edge_query_finds_exactly_the_facing_edges_in_range_nearest_first(seed):
     """Against brute force over every edge, for grids of several cell sizes (down to ones
-    the cell cap enlarges)."""
+    the cell cap enlarges); never more edges than the kernel's buffers hold."""
     rng = np.random.default_rng(seed)
     obstacles = ObstacleEdges(random_polygons(rng, 12), [BOUNDS])
     start, end = obstacles.point, obstacles.point[obstacles.next]
@@ -118,12 +118,12 @@ def test_the_edge_query_finds_exactly_the_facing_edges_in_range_nearest_first(se
         arrays = obstacles.arrays(reach)
         for p in rng.uniform(-7, 7, (200, 2)):
             dist, found = np.empty(obstacles.count), np.empty(obstacles.count, np.int64)
-            count = nearby_edges(p[0], p[1], reach, arrays[0], arrays[1], *arrays[5:], dist, found)
+            count = nearby_edges(p[0], p[1], reach, arrays[0], arrays[1], *arrays[5:12], dist, found)
             edge, rel = end - start, p - start
             facing = edge[:, 0] * rel[:, 1] - edge[:, 1] * rel[:, 0] < 0
             d = geometry.point_segment_distance(p[None], start, end)[0]
             expected = np.flatnonzero(facing & (d < reach))
-            assert sorted(found[:count].tolist()) == expected.tolist()
+            assert sorted(found[:count].tolist()) == expected.tolist() and count <= arrays[12]  # within the buffers' bound
             np.testing.assert_allclose(np.sqrt(dist[:count]), d[found[:count]], atol=1e-12)
             step, index_step = np.diff(dist[:count]), np.diff(found[:count])
             assert np.all((step > 0) | ((step == 0) & (index_step > 0)))  # nearest first, ties by index
@@ -208,7 +208,7 @@ def test_one_step_gives_rvo2s_velocities_on_random_obstacle_scenes():
             split = any(v >= obstacles.count or sim.get_next_obstacle_vertex(v) >= obstacles.count for v in neighbours[i])
             arrays = obstacles.arrays(reach)
             dist, found = np.empty(obstacles.count), np.empty(obstacles.count, np.int64)
-            count = nearby_edges(pos[i, 0], pos[i, 1], reach, arrays[0], arrays[1], *arrays[5:], dist, found)
+            count = nearby_edges(pos[i, 0], pos[i, 1], reach, arrays[0], arrays[1], *arrays[5:12], dist, found)
             tie = bool(np.any(np.diff(dist[:count]) == 0))
             assert split or tie, (seed, i, gap[i])
             explained += 1

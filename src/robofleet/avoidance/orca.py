@@ -281,22 +281,22 @@ _CHUNK = 256  # agents per parallel task (one set of scratch lines each)
 
 @numba.njit(cache=True, parallel=True)
 def _orca_parallel(pos, vel, pref, rad, vmax, idx, count, tau, dt, new, infeasible,
-                   tau_obst, point, nxt, prv, unit, convex, origin, h, nx, ny, start, edges, first_cell):
+                   tau_obst, point, nxt, prv, unit, convex, origin, h, nx, ny, start, edges, first_cell, most):
     n = len(pos)
     for c in numba.prange((n + _CHUNK - 1) // _CHUNK):
         _orca_range(c * _CHUNK, min(n, (c + 1) * _CHUNK), pos, vel, pref, rad, vmax, idx, count, tau, dt, new, infeasible,
-                    tau_obst, point, nxt, prv, unit, convex, origin, h, nx, ny, start, edges, first_cell)
+                    tau_obst, point, nxt, prv, unit, convex, origin, h, nx, ny, start, edges, first_cell, most)
 
 
 @numba.njit(cache=True)
 def _orca_range(lo, hi, pos, vel, pref, rad, vmax, idx, count, tau, dt, new, infeasible,
-                tau_obst, point, nxt, prv, unit, convex, origin, h, nx, ny, start, edges, first_cell):
+                tau_obst, point, nxt, prv, unit, convex, origin, h, nx, ny, start, edges, first_cell, most):
     """Agents ``lo … hi − 1``: obstacle lines (:mod:`.orca_obstacles`), then the agents'
     half-planes (step 2), 2-D program (3), fallback keeping the obstacle lines (4)."""
     k, n_edges = idx.shape[1], len(point)
-    lines = np.empty((n_edges + max(k, 1), 4))  # q_x, q_y, n_x, n_y: obstacle lines first
-    scratch = np.empty((n_edges + max(k, 1), 4))
-    dist, found = np.empty(max(n_edges, 1)), np.empty(max(n_edges, 1), np.int64)
+    lines = np.empty((most + max(k, 1), 4))  # q_x, q_y, n_x, n_y: obstacle lines first
+    scratch = np.empty((most + max(k, 1), 4))
+    dist, found = np.empty(max(most, 1)), np.empty(max(most, 1), np.int64)
     for i in range(lo, hi):
         fixed = 0
         if n_edges:

@@ -65,7 +65,8 @@ does: a robot gives up reciprocity before it gives up an obstacle.
 (:class:`EdgeGrid`, each edge in every cell its bounding box touches; cached per ``h``),
 so a robot reads the edges of the at most 3×3 cells its range box touches, and an edge
 listed in several of them is taken only in the first (the lowest cell of the overlap of
-its box and the range box) — O(edges nearby) per robot, not O(all edges).
+its box and the range box) — O(edges nearby) per robot, not O(all edges); the buffers of
+one robot hold the most edges any 3×3 block of cells lists.
 
 **Deviations from RVO2** (so equal inputs give equal lines but for these): RVO2 computes
 in single precision; its obstacle tree splits an edge that crosses a splitting line into
@@ -102,6 +103,7 @@ class EdgeGrid(NamedTuple):
     start: np.ndarray  # (nx · ny + 1,) run of each cell in ``edges``
     edges: np.ndarray  # edge indices, cell by cell, increasing within a cell
     first_cell: np.ndarray  # (E, 2) lowest cell (c_x, c_y) of each edge's bounding box
+    most: np.int64  # the most edges listed in any 3 × 3 block of cells: a bound on one robot's edges
 
 
 class ObstacleEdges:
@@ -155,9 +157,9 @@ class ObstacleEdges:
     def arrays(self, reach: float) -> tuple:
         """Everything the compiled step reads, for robots whose range is at most ``reach``."""
         g = self.grid(reach) if self.count else EdgeGrid(np.zeros(2), 1.0, np.int64(0), np.int64(0), np.zeros(1, np.int64),
-                                                         np.zeros(0, np.int64), np.zeros((0, 2), np.int64))
+                                                         np.zeros(0, np.int64), np.zeros((0, 2), np.int64), np.int64(0))
         return (self.point, self.next, self.previous, self.direction, self.convex, g.origin, float(g.h), np.int64(g.nx), np.int64(g.ny),
-                g.start, g.edges, g.first_cell)
+                g.start, g.edges, g.first_cell, np.int64(g.most))
 
 
 @functools.cache
@@ -194,7 +196,9 @@ def _build_grid(point: np.ndarray, nxt: np.ndarray, h: float) -> EdgeGrid:
     np.cumsum(start, out=start)
     edges = np.empty(start[-1], np.int64)
     _fill_cells(first, last, ny, start, edges, True)
-    return EdgeGrid(origin, h, np.int64(nx), np.int64(ny), start, edges, np.ascontiguousarray(first))
+    counts = np.pad(np.diff(start).reshape(nx, ny), 1)
+    block = sum(counts[i : i + nx, j : j + ny] for i in range(3) for j in range(3))  # a robot's range box touches ≤ 3 × 3 cells
+    return EdgeGrid(origin, h, np.int64(nx), np.int64(ny), start, edges, np.ascontiguousarray(first), np.int64(min(block.max(), len(point))))
 
 
 @numba.njit(cache=True)
