@@ -60,7 +60,7 @@ class OrcaParams(SpecModel):
     neighbor_dist: float = Field(3.0, gt=0, description="sensing range for neighbours [m]")
     max_neighbors: int = Field(10, ge=1, description="neighbours considered per agent")
     time_horizon: float = Field(2.0, gt=0, description="τ: collision-free horizon w.r.t. agents [s]")
-    time_horizon_obst: float = Field(2.0, gt=0, description="τ_o: collision-free horizon w.r.t. static obstacles and walls [s]")
+    time_horizon_obst: float = Field(2.0, gt=0, description="τ_o: collision-free horizon w.r.t. static obstacles and walls, at least Δt to keep robots out of them [s]")
 
 
 def neighbours(positions: np.ndarray, params: OrcaParams) -> tuple[np.ndarray, np.ndarray]:
