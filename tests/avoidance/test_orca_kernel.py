@@ -75,7 +75,7 @@ def test_fallback_program_minimises_the_largest_violation():
         failed, v0, v1 = program_2d(lines, k, 1.0, 0.0, 0.0, False)
         if failed == k:
             continue
-        v0, v1 = program_3d(lines, k, failed, 1.0, v0, v1, np.empty((k, 4)))
+        v0, v1 = program_3d(lines, k, failed, 1.0, v0, v1, np.empty((k, 4)), 0)
         ref = least_violation_velocities(q[None], n[None], np.ones((1, k), bool), np.array([1.0]))[0]
         assert v0 * v0 + v1 * v1 <= 1.0 + 1e-9
         assert largest_violation(q, n, np.array([v0, v1])) == pytest.approx(largest_violation(q, n, ref), abs=1e-9)

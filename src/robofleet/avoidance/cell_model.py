@@ -6,7 +6,8 @@ Methods differ only in what the cells use (:class:`MethodSetup`):
 * ``buavc``: Σ, Σ_o and the chance buffers (δ) — the B-UAVC of Sec. 4;
 * ``bvc``: Σ = Σ_o = 0, buffer r_s (Zhou et al. 2017);
 * ``bvc_inflated``: Σ = Σ_o = 0 and radius ``r_s + k σ_max`` (k = ``inflation_sigmas``);
-* ``orca``: no cells.
+* ``orca``: no cells (ORCA velocities with the obstacles and walls as RVO2 handles them,
+  :mod:`.orca_obstacles`).
 
 In a 3-D space every robot's cell is built in R³ from all estimates; ground robots
 (every model but the quadrotor) move in the plane ``z = z_g`` (floor + r_s) and use their

@@ -13,6 +13,9 @@ agents in parallel, :func:`orca_velocities`):
    vector from ``v`` to the closest point of ``∂VO^τ`` and ``n`` the outward normal
    there; ``ORCA_A = {v' : (v' − (v_A + u/2))·n ≥ 0}``. Agents already overlapping use
    the cut-off disc ``D(p/Δt, r/Δt)`` (resolve within one step).
+   Static polygon obstacles and walls (:mod:`.orca_obstacles`, Sec. 5 and RVO2) add one
+   half-plane per visible edge within ``τ_o v_max + r``, which the agent keeps alone (no
+   factor ½); they come first.
 3. *Velocity selection* (Eq. (6), Sec. 5.1): the velocity nearest to ``v_pref`` in
    ``D(0, v_max) ∩ ⋂ ORCA``, by the incremental 2-D linear program of the paper: take
    the optimum so far; when the next half-plane excludes it, the new optimum lies on
@@ -23,7 +26,13 @@ agents in parallel, :func:`orca_velocities`):
    same incremental scheme — when half-plane k is violated by more than the current
    maximum, the new optimum makes k the largest violation, i.e. it maximises ``n_k·v``
    over the disc and the lines ``{v : n_j·(q_j − v) ≤ n_k·(q_k − v)}``, j < k (a 2-D
-   program with a linear objective).
+   program with a linear objective). The obstacles' half-planes stay hard constraints of
+   every such program: only the agents' are traded.
+
+With exact positions and ``τ_o ≥ Δt``, a robot whose obstacle half-planes are feasible
+moves, over the step, only along velocities outside every visible edge's velocity
+obstacle, so it never comes closer than its radius to an obstacle or a wall
+(``tests/avoidance/test_orca_obstacles.py`` checks it on random scenes).
 
 The vectorized forms :func:`orca_halfplanes`, :func:`solve_velocity_lp` and
 :func:`least_violation_velocities` (exact enumeration of the optimality conditions) are
@@ -40,6 +49,7 @@ from ..core.config import SpecModel
 from ..core.errors import ConfigError
 from .kernels import use_parallel
 from .neighbours import nearest_neighbours
+from .orca_obstacles import ObstacleEdges, nearby_edges, no_obstacles, obstacle_lines
 
 _EPS = 1e-12
 
@@ -50,6 +60,7 @@ class OrcaParams(SpecModel):
     neighbor_dist: float = Field(3.0, gt=0, description="sensing range for neighbours [m]")
     max_neighbors: int = Field(10, ge=1, description="neighbours considered per agent")
     time_horizon: float = Field(2.0, gt=0, description="τ: collision-free horizon w.r.t. agents [s]")
+    time_horizon_obst: float = Field(2.0, gt=0, description="τ_o: collision-free horizon w.r.t. static obstacles and walls, at least Δt to keep robots out of them [s]")
 
 
 def neighbours(positions: np.ndarray, params: OrcaParams) -> tuple[np.ndarray, np.ndarray]:
@@ -217,7 +228,8 @@ def _least_violation(q, n, valid, v_max, out):
         out[i, 0], out[i, 1] = b0, b1
 
 
-def orca_velocities(positions: np.ndarray, velocities: np.ndarray, v_pref: np.ndarray, radius: float | np.ndarray, v_max: float | np.ndarray, params: OrcaParams, dt: float) -> tuple[np.ndarray, np.ndarray]:
+def orca_velocities(positions: np.ndarray, velocities: np.ndarray, v_pref: np.ndarray, radius: float | np.ndarray, v_max: float | np.ndarray, params: OrcaParams, dt: float,
+                    obstacles: ObstacleEdges | None = None) -> tuple[np.ndarray, np.ndarray]:
     """New velocities ``(N, 2)`` of every agent (one ORCA step; see the module docstring).
 
     Parameters
@@ -225,8 +237,10 @@ def orca_velocities(positions: np.ndarray, velocities: np.ndarray, v_pref: np.nd
     positions, velocities : (N, 2) as sensed by the agents
     v_pref : (N, 2) preferred velocities (toward the goal)
     radius : agent radius (scalar or ``(N,)``); v_max : speed limit (scalar or ``(N,)``)
-    params : neighbour distance, max neighbours, time horizon
+    params : neighbour distance, max neighbours, time horizons
     dt : simulation step
+    obstacles : static polygons and walls (:class:`~.orca_obstacles.ObstacleEdges`); their
+        lines come first and the fallback never relaxes them
 
     Returns
     -------
@@ -251,7 +265,10 @@ def orca_velocities(positions: np.ndarray, velocities: np.ndarray, v_pref: np.nd
     k = max(min(params.max_neighbors, N - 1), 0)
     idx, count = nearest_neighbours(pos, k, params.neighbor_dist)
     new, infeasible = np.empty((N, 2)), np.empty(N, np.bool_)
-    args = (pos, vel, pref, rad, vmax, idx, count, float(params.time_horizon), float(dt), new, infeasible)
+    walls = no_obstacles() if obstacles is None or obstacles.count == 0 or N == 0 else \
+        obstacles.arrays(float(params.time_horizon_obst * vmax.max() + rad.max()))
+    args = (pos, vel, pref, rad, vmax, idx, count, float(params.time_horizon), float(dt), new, infeasible,
+            float(params.time_horizon_obst), *walls)
     if use_parallel(N):
         _orca_parallel(*args)
     else:
@@ -263,28 +280,39 @@ _CHUNK = 256  # agents per parallel task (one set of scratch lines each)
 
 
 @numba.njit(cache=True, parallel=True)
-def _orca_parallel(pos, vel, pref, rad, vmax, idx, count, tau, dt, new, infeasible):
+def _orca_parallel(pos, vel, pref, rad, vmax, idx, count, tau, dt, new, infeasible,
+                   tau_obst, point, nxt, prv, unit, convex, origin, h, nx, ny, start, edges, first_cell, most):
     n = len(pos)
     for c in numba.prange((n + _CHUNK - 1) // _CHUNK):
-        _orca_range(c * _CHUNK, min(n, (c + 1) * _CHUNK), pos, vel, pref, rad, vmax, idx, count, tau, dt, new, infeasible)
+        _orca_range(c * _CHUNK, min(n, (c + 1) * _CHUNK), pos, vel, pref, rad, vmax, idx, count, tau, dt, new, infeasible,
+                    tau_obst, point, nxt, prv, unit, convex, origin, h, nx, ny, start, edges, first_cell, most)
 
 
 @numba.njit(cache=True)
-def _orca_range(lo, hi, pos, vel, pref, rad, vmax, idx, count, tau, dt, new, infeasible):
-    """Agents ``lo … hi − 1``: half-planes (step 2), 2-D program (3), fallback (4)."""
-    k = idx.shape[1]
-    lines = np.empty((max(k, 1), 4))  # q_x, q_y, n_x, n_y
-    scratch = np.empty((max(k, 1), 4))
+def _orca_range(lo, hi, pos, vel, pref, rad, vmax, idx, count, tau, dt, new, infeasible,
+                tau_obst, point, nxt, prv, unit, convex, origin, h, nx, ny, start, edges, first_cell, most):
+    """Agents ``lo … hi − 1``: obstacle lines (:mod:`.orca_obstacles`), then the agents'
+    half-planes (step 2), 2-D program (3), fallback keeping the obstacle lines (4)."""
+    k, n_edges = idx.shape[1], len(point)
+    lines = np.empty((most + max(k, 1), 4))  # q_x, q_y, n_x, n_y: obstacle lines first
+    scratch = np.empty((most + max(k, 1), 4))
+    dist, found = np.empty(max(most, 1)), np.empty(max(most, 1), np.int64)
     for i in range(lo, hi):
+        fixed = 0
+        if n_edges:
+            near = nearby_edges(pos[i, 0], pos[i, 1], tau_obst * vmax[i] + rad[i], point, nxt, origin, h, nx, ny, start, edges, first_cell,
+                                dist, found)
+            fixed = obstacle_lines(pos[i, 0], pos[i, 1], vel[i, 0], vel[i, 1], rad[i], tau_obst, found, near, point, nxt, prv, unit, convex, lines)
         m = count[i]
         for t in range(m):
             j = idx[i, t]
             halfplane(pos[j, 0] - pos[i, 0], pos[j, 1] - pos[i, 1], vel[i, 0] - vel[j, 0], vel[i, 1] - vel[j, 1],
-                      vel[i, 0], vel[i, 1], rad[i] + rad[j], tau, dt, lines, t)
-        failed, v0, v1 = program_2d(lines, m, vmax[i], pref[i, 0], pref[i, 1], False)
-        if failed < m:
-            v0, v1 = program_3d(lines, m, failed, vmax[i], v0, v1, scratch)
-        new[i, 0], new[i, 1], infeasible[i] = v0, v1, failed < m
+                      vel[i, 0], vel[i, 1], rad[i] + rad[j], tau, dt, lines, fixed + t)
+        total = fixed + m
+        failed, v0, v1 = program_2d(lines, total, vmax[i], pref[i, 0], pref[i, 1], False)
+        if failed < total:
+            v0, v1 = program_3d(lines, total, failed, vmax[i], v0, v1, scratch, fixed)
+        new[i, 0], new[i, 1], infeasible[i] = v0, v1, failed < total
 
 
 @numba.njit(cache=True)
@@ -369,16 +397,19 @@ def program_2d(lines, m, radius, c0, c1, direction):
 
 
 @numba.njit(cache=True)
-def program_3d(lines, m, begin, radius, v0, v1, scratch):
+def program_3d(lines, m, begin, radius, v0, v1, scratch, fixed):
     """Sec. 5.2: minimise the largest violation ``max_k n_k·(q_k − v)`` over the disc,
-    starting from the optimum of half-planes ``0 … begin − 1`` (violation ≤ 0)."""
+    starting from the optimum of half-planes ``0 … begin − 1`` (violation ≤ 0). The
+    first ``fixed`` lines (the obstacles') stay hard constraints and are never traded."""
     worst = 0.0
     for k in range(begin, m):
         qk0, qk1, nk0, nk1 = lines[k, 0], lines[k, 1], lines[k, 2], lines[k, 3]
         if nk0 * (qk0 - v0) + nk1 * (qk1 - v1) <= worst:
             continue
-        rows = 0
-        for j in range(k):  # {v : n_j·(q_j − v) ≤ n_k·(q_k − v)}
+        for j in range(fixed):
+            scratch[j, 0], scratch[j, 1], scratch[j, 2], scratch[j, 3] = lines[j, 0], lines[j, 1], lines[j, 2], lines[j, 3]
+        rows = fixed
+        for j in range(fixed, k):  # {v : n_j·(q_j − v) ≤ n_k·(q_k − v)}
             w0, w1 = lines[j, 2] - nk0, lines[j, 3] - nk1
             w_len = np.sqrt(w0 * w0 + w1 * w1)
             if w_len <= _EPS:  # same direction: line k dominates j everywhere

@@ -67,6 +67,7 @@ from .navigation.right_hand import RightHandParams
 from .navigation.route import RouteParams
 from .navigation.yielding import YieldingParams
 from .orca import OrcaParams
+from .placement import halves_points, longest_halves_trip
 
 Point = tuple[float, float]
 Point3 = tuple[float, float, float]
@@ -254,14 +255,17 @@ class ModelSpec(SpecModel):
 
 class TeamLayoutSpec(SpecModel):
     """Starts and goals of a team: ``circle`` (robots evenly on a circle of ``radius``
-    about ``center`` from angle ``phase``, goal = the antipode; at ``height`` in 3-D) or
-    ``explicit`` ``starts``/``goals`` lists."""
+    about ``center`` from angle ``phase``, goal = the antipode; at ``height`` in 3-D),
+    ``halves`` (robots fill the two halves of ``box`` on a grid of pitch ``spacing`` and
+    swap, :mod:`.placement`) or ``explicit`` ``starts``/``goals`` lists."""
 
-    kind: Literal["circle", "explicit"] = "circle"
+    kind: Literal["circle", "halves", "explicit"] = "circle"
     radius: float = Field(3.0, gt=0)
     center: Point = (0.0, 0.0)
     phase: float = 0.0
     height: float = 1.0
+    box: Optional[tuple[float, float, float, float]] = Field(None, description="area [xmin, ymin, xmax, ymax] whose left and right halves a `halves` layout fills [m]")
+    spacing: float = Field(0.6, gt=0, description="grid pitch of a `halves` layout, at least 2 r_s [m]")
     starts: Optional[list[list[float]]] = None
     goals: Optional[list[list[float]]] = None
 
@@ -271,6 +275,8 @@ class TeamLayoutSpec(SpecModel):
             return 2.0 * self.r_max
         if self.kind == "circle":
             return 2.0 * self.radius
+        if self.kind == "halves":
+            return longest_halves_trip(self.box, self.spacing)
         return float(max(np.linalg.norm(np.subtract(g[:2], s[:2])) for s, g in zip(self.starts, self.goals)))
 
     @model_validator(mode="after")
@@ -278,6 +284,8 @@ class TeamLayoutSpec(SpecModel):
         if self.kind == "explicit":
             if self.starts is None or self.goals is None or len(self.starts) != len(self.goals):
                 raise ScenarioError("starts", "'starts' and 'goals' lists of equal length for an explicit layout", None)
+        if self.kind == "halves" and (self.box is None or not (self.box[0] < self.box[2] and self.box[1] < self.box[3])):
+            raise ScenarioError("box", "[xmin, ymin, xmax, ymax] with min < max for a halves layout", None if self.box is None else list(self.box))
         return self
 
 
@@ -286,7 +294,7 @@ class LayoutSpec(TeamLayoutSpec):
     explicit) or ``antipodal`` (random, the authors' setup: robot i at a random angle in
     its own sector of width 2π/n, radius U(r_min, r_max), goal = −start)."""
 
-    kind: Literal["circle", "antipodal", "explicit"] = "circle"
+    kind: Literal["circle", "antipodal", "halves", "explicit"] = "circle"
     radius: float = Field(4.0, gt=0)
     r_min: float = Field(0.3, ge=0)
     r_max: float = Field(4.7, gt=0)
@@ -608,7 +616,7 @@ def check_layout(spec: Spec) -> None:
         if n > 1 and 2 * lay.radius * np.sin(np.pi / n) < 2 * r:
             most = int(np.pi / np.arcsin(min(1.0, r / lay.radius)))
             raise ScenarioError("robots.n", f"at most {most} robots of radius {r} on a circle of radius {lay.radius}", n)
-    else:
+    elif lay.kind == "antipodal":
         ring = np.pi * (lay.r_max**2 - lay.r_min**2)
         if n * np.pi * (2 * r) ** 2 > 0.5 * ring or (n > 1 and 2 * np.pi * lay.r_max / n < 2 * r):
             raise ScenarioError("robots.n", f"few enough robots of radius {r} to fit in the ring r ∈ [{lay.r_min}, {lay.r_max}]", n)
@@ -680,11 +688,14 @@ def team_points(team: TeamSpec, dim: int, ground_z: float) -> tuple[np.ndarray, 
     lay = team.layout
     if lay.kind == "explicit":
         return explicit_points(lay.starts, dim, team), explicit_points(lay.goals, dim, team)
-    angle = lay.phase + 2 * np.pi * np.arange(team.n) / team.n
-    ring = lay.radius * np.column_stack([np.cos(angle), np.sin(angle)])
-    center = np.asarray(lay.center, float)
     starts, goals = np.zeros((team.n, dim)), np.zeros((team.n, dim))
-    starts[:, :2], goals[:, :2] = ring + center, -ring + center
+    if lay.kind == "halves":
+        starts[:, :2], goals[:, :2] = halves_points(team.n, lay.box, lay.spacing)
+    else:
+        angle = lay.phase + 2 * np.pi * np.arange(team.n) / team.n
+        ring = lay.radius * np.column_stack([np.cos(angle), np.sin(angle)])
+        center = np.asarray(lay.center, float)
+        starts[:, :2], goals[:, :2] = ring + center, -ring + center
     if dim == 3:
         starts[:, 2] = goals[:, 2] = lay.height if team.flying else ground_z
     return starts, goals

@@ -60,6 +60,7 @@ from .navigation.pipeline import MPC_NO_MPC, PIPELINES
 from .navigation.progress import DeadlockParams
 from .navigation.route import Roadmap, Route
 from .orca import orca_velocities, preferred_velocities
+from .orca_obstacles import ObstacleEdges
 from .spec import Spec, TeamSpec
 
 CONTROL_WIDTH = {"single_integrator": 2, "double_integrator": 2, "unicycle": 2, "quadrotor": 4}
@@ -190,6 +191,7 @@ class World:
         self.n = len(self.starts)
         teams = spec.team_specs()
         self.cell_model = None if spec.method == "orca" else cell_model(spec, self.setup)
+        self.orca_obstacles = ObstacleEdges.from_workspace(spec.workspace.build()) if spec.method == "orca" else None
         self.navigation_params = navigation_params(spec)
         self.deadlock = DeadlockParams(**spec.deadlock.model_dump())
         self.groups = [make_group(spec, team, sl, self.starts[sl], self.goals[sl]) for team, sl in zip(teams, slices)]
@@ -422,12 +424,13 @@ class World:
 
     def orca_control(self, estimates: np.ndarray) -> np.ndarray:
         """ORCA velocities (van den Berg et al. 2011) for all robots, preferring the goal at
-        full speed; arrived robots prefer to stand still."""
+        full speed, avoiding the nominal obstacles and the walls; arrived robots prefer to
+        stand still."""
         for g in self.groups:
             g.arrived |= np.linalg.norm(self.goals[g.index] - estimates[g.index], axis=1) <= self.spec.goal_tolerance
         arrived = self.arrived()
         pref = np.where(arrived[:, None], 0.0, preferred_velocities(estimates, self.goals, self.v_max, self.dt))
-        v, _ = orca_velocities(estimates, self.velocity, pref, self.radius, self.v_max, self.spec.orca, self.dt)
+        v, _ = orca_velocities(estimates, self.velocity, pref, self.radius, self.v_max, self.spec.orca, self.dt, self.orca_obstacles)
         return v
 
     # -- moving ---------------------------------------------------------------------------
