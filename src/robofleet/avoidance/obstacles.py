@@ -29,7 +29,6 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.stats import chi2
 
 from ..core import geometry
 
@@ -66,6 +65,8 @@ class ObstacleSet:
         verts = np.stack([np.vstack([p, np.repeat(p[-1:], v_max - len(p), 0)]) for p in map(geometry.ensure_ccw, polygons)])
         covs = np.asarray(covariances, dtype=float)
         d = verts.shape[-1]
+        from scipy.stats import chi2  # loaded on first use: validating a scenario needs no scipy.stats
+
         radius_quantile = float(np.sqrt(chi2.ppf(1.0 - epsilon, df=d))) if epsilon > 0 else np.inf
         whitening, radii, extents = [], [], []
         for cov in covs:

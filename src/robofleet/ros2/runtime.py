@@ -110,6 +110,11 @@ def run_node(make_node: Callable[[], Any], done: Callable[[Any], bool] | None = 
             executor.spin_once(timeout_sec=0.1)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
+    except RuntimeError:
+        # Ctrl-C shuts the context down from rclpy's signal handler; a take in flight then
+        # fails on the invalidated handle. That is the stop, not an error of the node.
+        if rclpy.ok():
+            raise
     finally:
         if node is not None:
             finish = getattr(node, "finish", None)
