@@ -272,3 +272,21 @@ def threaded_loop(executor: PlanExecutor, seed: int, lookahead: int = 1, sleep: 
     for thread in threads:
         thread.join()
     return world
+
+
+# -- stalls -------------------------------------------------------------------------------------------
+def waits_for(sup: Supervisor) -> list[dict]:
+    """Who waits for whom now (under the supervisor's lock): per side of Eq. 1 that stops its
+    waiter at the known progress, the waiter, the robot passing first, the step that one
+    must pass and how far it is known and planned to go — a stall's explanation."""
+    with sup._lock:
+        space, labels, known = sup.space, sup.execution_state.labels, sup.known.copy()
+        blocking = np.flatnonzero(sup.execution_state.rule.blocking_sides(labels, known))
+        rows = []
+        for side in blocking.tolist():
+            w, a = int(space.side_waiter[side]), int(space.side_other[side])
+            column = int(known[w]) + 1
+            top = int(space.profile[space.side_offset[side] + column - space.side_lo[side]])
+            rows.append(dict(waiter=w, obstacle=side // 2, first=a, must_pass=top, first_known=int(known[a]),
+                             first_reach=int(sup.reach[a]), first_goal=int(space.lengths[a])))
+        return rows

@@ -22,7 +22,7 @@ import time
 
 import numpy as np
 import pytest
-from supervisor_loops import SleepySupervisor, contacts_at, executor_for, wandering_instance
+from supervisor_loops import SleepySupervisor, contacts_at, executor_for, waits_for, wandering_instance
 from test_supervisor_lifelong import METHODS, TOLERANCE, CycleWatch, new_leg
 
 from robofleet.coordination import Supervisor
@@ -177,10 +177,12 @@ def lifelong_threaded_run(seed: int, method: str, n: int = 4, appends: int = 5, 
         thread.start()
     for thread in threads:
         thread.join()
-    if world.stalled:  # is the stall a cycle of waiting robots?
+    waits = None
+    if world.stalled:  # is the stall a cycle of waiting robots? who waits for whom?
         watch.check(sup)
+        waits = dict(x=world.x.tolist(), known=sup.known.tolist(), lengths=sup.traj.lengths.tolist(), waits=waits_for(sup))
     return dict(counts, contacts=world.contacts, overestimates=world.overestimates, cycles=watch.cycles,
-                stalled=world.stalled, error=world.error, rounds_after_changes=world.rounds_after_changes)
+                stalled=world.stalled, error=world.error, rounds_after_changes=world.rounds_after_changes, waits=waits)
 
 
 def threaded_runs(method: str, seeds) -> tuple[dict, list]:

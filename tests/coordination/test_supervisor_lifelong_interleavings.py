@@ -1,0 +1,205 @@
+"""Lifelong plans under seeded adversarial interleavings, single-threaded (a deterministic
+replay of what threads may do): every tick is a random sequence of the robots' reports
+(fresh, stale by up to three steps, or lost; ``holding=True`` now and then), their
+answer requests (each answer delivered after up to three ticks, or lost), their moves
+(one plan step on the latest delivered ``until``, disturbed with the plan's
+probability), and an appender's and a cutter's changes, in any order. Checked after
+every call: the active segment graph (exact resolution, on the known progress) holds no
+cycle, known progress is never past the true one; after every move: no two robots
+closer than ``2r``.
+Checked for liveness: whenever no robot has moved for :data:`QUIET_TICKS` ticks, every
+robot is at its goal (a stall records which robots wait for which), and no active
+region's robot passing first parks inside it (a wait for ever that no cycle shows)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from supervisor_loops import contacts_at, executor_for, waits_for, wandering_instance
+from test_supervisor_lifelong import TOLERANCE, CycleWatch, new_leg
+
+from robofleet.coordination import Supervisor
+from robofleet.core.errors import ConfigError, InfeasibleError
+
+QUIET_TICKS = 80
+"""Ticks without a move after which a run that is not over counts as stalled (an answer
+is requested with chance 0.7 and lost with chance 0.1 per tick: a robot free to move
+hears so within a few ticks)."""
+
+
+def parked_first(sup: Supervisor) -> int:
+    """Active regions whose robot passing first parks inside (its rows reach its goal step):
+    their waiter would wait for ever although no cycle shows it (Claim 3)."""
+    space, labels = sup.space, sup.execution_state.labels
+    if space.n_obstacles == 0:
+        return 0
+    active = labels[space.side_obstacle] == space.side_other
+    highest = np.maximum.reduceat(space.profile, space.side_offset)
+    return int(np.count_nonzero(active & (highest >= space.lengths[space.side_other])))
+
+
+class Interleaving:
+    """One seeded run: the world's true progress, the answers in transit, the counts."""
+
+    def __init__(self, seed: int, method: str, n: int, appends: int, cuts: int):
+        self.rng = rng = np.random.default_rng([seed, 7])
+        traj = wandering_instance(rng, n, TOLERANCE)
+        probability = rng.uniform(0.0, 0.5, traj.positions.shape[:2])  # per robot and step: TFA and TFF differ
+        self.sup = Supervisor(traj, executor=executor_for(traj, method, probability), position_tolerance=TOLERANCE,
+                              lookahead=1 + seed % 2)
+        self.n, self.appends_left, self.cuts_left = n, appends, cuts
+        self.x = np.zeros(n, np.intp)
+        self.allowed = np.zeros(n, np.intp)
+        self.floor, self.held = np.zeros(n, int), np.zeros(n, bool)
+        self.inbox: list[tuple[int, int, int, int]] = []  # (due tick, serial, robot, until)
+        self.serial = self.tick = 0
+        self.watch = CycleWatch()
+        self.counts = dict(calls=0, appends=0, cuts=0, refused=0, contacts=0, overestimates=0, cycles=0, parked_first=0,
+                           stalled=0)
+        self.stall: dict | None = None
+        self.graph: tuple | None = None
+
+    def check(self) -> None:
+        self.counts["calls"] += 1
+        self.counts["overestimates"] += int(np.count_nonzero(self.sup.known > self.x))
+        graph = (id(self.sup.space), self.sup.execution_state.labels.tobytes(), self.sup.known.tobytes())
+        if graph != self.graph:  # the active segment graph depends on these alone
+            self.graph = graph
+            self.watch.check(self.sup)
+            self.counts["cycles"] = self.watch.cycles
+            self.counts["parked_first"] += parked_first(self.sup)
+
+    # -- events ----------------------------------------------------------------------------------
+    def report(self, i: int) -> None:
+        rng = self.rng
+        if rng.random() < 0.5:
+            self.sup.report(i, progress=int(max(0, self.x[i] - rng.integers(0, 4))))
+        else:
+            hold = bool(rng.random() < 0.3)
+            self.sup.report(i, progress=int(self.x[i]), holding=hold)
+            self.serial += 1
+            if hold:
+                self.floor[i], self.held[i], self.allowed[i] = self.serial, True, self.x[i]
+        self.check()
+
+    def ask(self, i: int) -> None:
+        answer = self.sup.answer(i)
+        self.serial += 1
+        if self.rng.random() < 0.9:
+            self.inbox.append((self.tick + int(self.rng.integers(0, 4)), self.serial, i, answer.until))
+        self.check()
+
+    def move(self, i: int) -> None:
+        lengths, probability = self.sup.traj.lengths, self.sup.executor.probability
+        p = probability[i, min(int(self.x[i]), probability.shape[1] - 1)]
+        if not self.held[i] and self.x[i] < min(self.allowed[i], lengths[i]) and self.rng.random() >= p:
+            self.x[i] += 1
+            self.moved = True
+            self.counts["contacts"] += contacts_at(self.sup.traj, self.x)
+
+    def append(self) -> None:
+        finished = np.flatnonzero(self.sup.known >= self.sup.traj.lengths)
+        if self.appends_left == 0 or len(finished) == 0:
+            return
+        i = int(self.rng.choice(finished))
+        plan = self.sup.traj
+        leg = new_leg(self.rng, plan.positions[i, plan.lengths[i]])
+        self.change(lambda: self.sup.append_plan(i, leg), "appends")
+        self.appends_left -= 1
+
+    def cut(self) -> None:
+        if self.cuts_left == 0:
+            return
+        i = int(self.rng.integers(self.n))
+        reached = int(max(self.sup.reach[i], self.sup.known[i]))
+        step = int(min(self.sup.traj.lengths[i], reached + self.rng.integers(0, 6)))
+        self.change(lambda: self.sup.cut_plan(i, step), "cuts")
+        self.cuts_left -= 1
+
+    def change(self, make, made: str) -> None:
+        try:
+            make()
+            self.counts[made] += 1
+        except (ConfigError, InfeasibleError) as error:
+            assert "\n" not in str(error)
+            self.counts["refused"] += 1
+        self.check()
+
+    def deliver(self) -> None:
+        due = [m for m in self.inbox if m[0] <= self.tick]
+        self.inbox = [m for m in self.inbox if m[0] > self.tick]
+        for _, sent, i, until in due:
+            if sent >= self.floor[i]:
+                self.held[i], self.allowed[i] = False, max(self.allowed[i], until)
+
+    # -- the run ---------------------------------------------------------------------------------
+    def events(self) -> list:
+        rng, events = self.rng, []
+        for i in range(self.n):
+            if rng.random() < 0.7:
+                events.append((self.report, i))
+            if rng.random() < 0.7:
+                events.append((self.ask, i))
+            events.append((self.move, i))
+        if rng.random() < 0.05:
+            events.append((self.append, None))
+        if rng.random() < 0.02:
+            events.append((self.cut, None))
+        return [events[k] for k in rng.permutation(len(events))]
+
+    def run(self, max_ticks: int = 4000) -> dict:
+        quiet = 0
+        for self.tick in range(max_ticks):
+            self.moved = False
+            for event, i in self.events():
+                event() if i is None else event(i)
+            self.deliver()
+            over = bool(np.all(self.x >= self.sup.traj.lengths))
+            if over and self.appends_left == 0 and self.cuts_left == 0:
+                break
+            quiet = 0 if self.moved or over else quiet + 1
+            if quiet >= QUIET_TICKS:
+                self.counts["stalled"] = 1
+                self.stall = self.diagnosis()
+                break
+        self.counts["ticks"] = self.tick
+        self.counts["flips"] = int(self.sup.stats.get("flips", 0))
+        self.counts["flip_tests"] = int(self.sup.stats.get("tests", 0))
+        return self.counts
+
+    def diagnosis(self) -> dict:
+        sup = self.sup
+        return dict(x=self.x.tolist(), known=sup.known.tolist(), reach=sup.reach.tolist(),
+                    lengths=sup.traj.lengths.tolist(), allowed=self.allowed.tolist(), held=self.held.tolist(),
+                    waits=waits_for(sup))
+
+
+def interleaved_runs(method: str, seeds, appends: int = 8, cuts: int = 6) -> tuple[dict, list]:
+    """Totals over the seeded runs (``4 + seed % 3`` robots) and the runs that broke a
+    guarantee (with a diagnosis of a stall)."""
+    totals, bad = {"runs": 0}, []
+    for seed in seeds:
+        run = Interleaving(seed, method, 4 + seed % 3, appends, cuts)
+        counts = run.run()
+        totals["runs"] += 1
+        for key, value in counts.items():
+            totals[key] = totals.get(key, 0) + int(value)
+        if counts["cycles"] or counts["stalled"] or counts["contacts"] or counts["overestimates"] or counts["parked_first"]:
+            bad.append((seed, counts, run.stall))
+    return totals, bad
+
+
+@pytest.mark.parametrize("method", ["tff", "tfa"])
+def test_adversarial_interleavings_never_collide_close_a_cycle_nor_stall(method):
+    totals, bad = interleaved_runs(method, range(4))
+    print(method, totals)
+    assert bad == []
+    assert totals["appends"] >= 12 and totals["cuts"] >= 8 and totals["flips"] >= 4
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("method", ["rmtrack", "tff", "tfa", "btpg", "optimal"])
+def test_adversarial_interleavings_never_collide_close_a_cycle_nor_stall_on_many_seeds(method):
+    totals, bad = interleaved_runs(method, range(4, 60))
+    print(method, totals)
+    assert bad == []
