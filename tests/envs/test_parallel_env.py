@@ -217,3 +217,40 @@ def test_huge_actions_are_shortened_along_their_direction_without_warnings(safet
         assert np.all(speed <= v_max * (1 + 1e-12))
         if safety == "none":
             assert np.allclose(speed, v_max) and np.allclose(huge.fleet.velocity / v_max, directions, atol=1e-12)
+
+
+def biased_estimates(e, offset):
+    """Make every later estimate the true position plus ``offset`` (a known estimation error)."""
+    e.fleet.world.position_noise = lambda rng: np.tile(np.asarray(offset, float), (e.fleet.n, 1))
+
+
+@pytest.mark.parametrize("safety", ["buavc", "none"])
+def test_termination_follows_the_goal_checker_on_the_estimate_not_the_true_position(safety):
+    """The env, the simulation and the filter agree on "home": the robot's own estimate
+    within the tolerance (navigation/goal.py), whatever its true position."""
+    scenario = {"robots": {"n": 2, "sigma": 0.01, "layout": {"kind": "explicit", "starts": [[-1, 0], [2, 2]], "goals": [[-0.85, 0], [2, -2]]}}}
+    e = parallel_env(scenario, safety, max_steps=6, rewards=RewardWeights(progress=0.0, contact=0.0, arrival=10.0))
+    e.reset(seed=0)
+    biased_estimates(e, [0.0, 0.5])  # estimates 0.5 m off: the true position arrives, the estimate does not
+    _, _, term, _, _ = e.step({"robot_0": [0.4, 0.0]})
+    _, rew, term, _, _ = e.step({"robot_0": [0.4, 0.0]})
+    assert np.linalg.norm(e.fleet.positions[0] - e.fleet.goals[0]) <= e.spec.goal_tolerance
+    assert not term["robot_0"] and rew["robot_0"] == 0.0 and "robot_0" in e.agents
+    biased_estimates(e, [0.0, 0.0])  # the estimate now agrees: home, parked, rewarded once
+    _, rew, term, _, _ = e.step({"robot_0": [0.0, 0.0]})
+    assert term["robot_0"] and rew["robot_0"] == 10.0 and "robot_0" not in e.agents
+
+
+def test_a_robot_whose_estimate_is_home_terminates_and_holds_even_when_its_true_position_is_not():
+    scenario = {"robots": {"n": 2, "sigma": 0.01, "layout": {"kind": "explicit", "starts": [[-1, 0], [2, 2]], "goals": [[-0.85, 0], [2, -2]]}}}
+    e = parallel_env(scenario, "buavc", max_steps=4)
+    e.reset(seed=0)
+    biased_estimates(e, [0.15, 0.0])  # the estimate reaches the goal one step before the true position
+    _, _, term, _, _ = e.step({"robot_0": [0.4, 0.0]})
+    assert term["robot_0"] and np.linalg.norm(e.fleet.positions[0] - e.fleet.goals[0]) > e.spec.goal_tolerance
+    held = e.fleet.positions[0].copy()
+    while e.agents:
+        e.step({"robot_1": [0.0, -0.4]})
+    assert np.array_equal(e.fleet.positions[0], held)  # parked: it holds from then on
+    results = e.trace().results
+    assert results["max_true_goal_distance"] >= np.linalg.norm(held - e.fleet.goals[0])

@@ -18,12 +18,15 @@ Action (``Box [−v_max, v_max]²``, float32)
     naming the agent.
 Reward per agent and step (weights in :class:`RewardWeights`)
     ``progress × (d_before − d_after)`` (TRUE distance to the goal, metres) ``+ contact ×
-    (contacts this step)`` ``+ arrival`` on the step the robot arrives.
+    (contacts this step)`` ``+ arrival`` on the step the robot is home.
 Termination / truncation per agent
-    terminated when its TRUE position is within ``goal_tolerance`` of its goal (the robot
-    then stays parked there, still seen by the others); truncated for every agent still
-    active after ``max_steps`` steps (the scenario's, unless given). Contacts do not end
-    an episode.
+    terminated when the robot is home by the goal checker the simulation and the safety
+    filter's users share (:class:`~robofleet.avoidance.navigation.goal.GoalChecker`): its
+    own estimate — the one in its observation — is within ``goal_tolerance`` of its goal,
+    and from then on it holds, parked there and still seen by the others. Its TRUE
+    position may then lie a few σ farther (the trace's ``max_true_goal_distance``).
+    Truncated for every agent still active after ``max_steps`` steps (the scenario's,
+    unless given). Contacts do not end an episode.
 Info per agent
     ``contacts`` this step, ``filtered`` (the filter changed its velocity), and with the
     filter ``estimate_in_cell`` and ``empty_cell`` (the premise of the B-UAVC bound).
@@ -58,6 +61,7 @@ try:
 except ImportError as exc:  # pragma: no cover - exercised only without the extra
     raise ImportError("robofleet.envs needs the optional 'rl' extra: pip install 'robofleet[rl]'") from exc
 
+from ..avoidance.navigation.goal import GoalChecker
 from ..avoidance.spec import Spec as AvoidanceSpec
 from ..core import arguments
 from ..core.config import MAX_MAGNITUDE, ScenarioSource, load_spec
@@ -148,6 +152,7 @@ class AvoidanceParallelEnv(ParallelEnv):
         self.fleet.reset(self._rng)
         if self.fleet.safety_filter is not None:
             self.fleet.safety_filter.reset()
+        self.goal = GoalChecker.initial(self.fleet.n, self.spec.goal_tolerance)
         self.agents = list(self.possible_agents)
         self.steps, self.episode_contacts = 0, 0
         self.log = EpisodeLog.start(self.fleet)
@@ -171,8 +176,7 @@ class AvoidanceParallelEnv(ParallelEnv):
         before = fleet.goal_distance()
         outcome = fleet.step(desired)
         after = fleet.goal_distance()
-        newly = (after <= self.spec.goal_tolerance) & ~fleet.arrived
-        fleet.arrived |= newly
+        newly = self.settle_goals()
         self.steps += 1
         self.episode_contacts += int(outcome.contacts.sum())
         reward = self.rewards.progress * (before - after) + self.rewards.contact * outcome.contacts + self.rewards.arrival * newly
@@ -187,6 +191,15 @@ class AvoidanceParallelEnv(ParallelEnv):
                {a: self.agent_info(self.agent_index[a], outcome) for a in live})
         self.agents = [a for a in live if not (out[2][a] or out[3][a])]
         return out
+
+    def settle_goals(self) -> np.ndarray:
+        """Judge this step's estimates with the goal checker: robots home now hold (parked,
+        :attr:`Fleet.arrived`); returns the robots that became home at this step."""
+        was_home = self.goal.home.copy()
+        self.goal.observe(self.fleet.estimates, self.fleet.goals)
+        self.goal.settle(holding=True)  # a robot home is parked: it holds from now on
+        self.fleet.arrived = self.goal.home.copy()
+        return self.goal.home & ~was_home
 
     def desired_velocities(self, actions: Mapping[str, Any]) -> np.ndarray:
         """``(N, 2)`` desired velocities from the action dict (zero for robots not in it):

@@ -68,6 +68,7 @@ class EpisodeLog:
         results = run_results(positions, fleet.goals, radius=fleet.radius, dt=spec.dt, goal_tolerance=spec.goal_tolerance,
                               workspace=fleet.workspace, boxes=None, step_seconds=arrays["step_seconds"], arrivals=self.arrival,
                               counts=ControllerCounts(empty_cell_steps=int(arrays["empty_cell"].sum())), premise=premise)
+        results["max_true_goal_distance"] = float(np.linalg.norm(positions[-1] - fleet.goals, axis=1).max())
         metadata = {**fleet.world.metadata(), "method": f"env, safety {method}", "scenario": spec.scenario_name, "seed": seed,
                     "n_robots": fleet.n, "n_steps": len(positions) - 1, "wall_seconds": float(np.sum(self.seconds))}
         return Trace("avoidance", arrays, [], metadata, results, fleet.workspace)
