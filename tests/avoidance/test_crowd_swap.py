@@ -7,7 +7,8 @@ import pytest
 
 import robofleet
 from robofleet.avoidance.placement import halves_points
-from robofleet.avoidance.spec import initial_layout, straight_line_budget
+from robofleet.avoidance.layout import initial_layout
+from robofleet.avoidance.spec import straight_line_budget
 from robofleet.core.errors import ScenarioError
 from robofleet.scenarios import catalogue
 
