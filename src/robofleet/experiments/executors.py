@@ -31,7 +31,8 @@ from collections import deque
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
 from types import ModuleType
-from typing import TYPE_CHECKING, Any, Callable, Iterator, Mapping
+from collections.abc import Callable, Iterator, Mapping
+from typing import TYPE_CHECKING, Any
 
 from ..core.errors import ConfigError, RobofleetError
 
@@ -90,7 +91,7 @@ def call_task(fn: TaskFn, task: dict) -> Outcome:
             raise TypeError(f"the task function must return a dict or a list of dicts, received {type(result).__name__}")
         if any("error" in r for r in rows):
             raise ValueError("the task function returned the reserved column 'error' (raise an exception instead)")
-        return "ok", [dict(r) for r in rows]
+        return "ok", [r if type(r) is dict else dict(r) for r in rows]
     except Exception as exc:  # recorded as a failure row; the sweep goes on
         return "error", one_line(exc)
 

@@ -108,13 +108,21 @@ def file_stem(run_id: str) -> str:
     return quote(run_id, safe="")
 
 
+SHORT_RUN_ID = (MAX_NAME_LENGTH - len(ERROR_PREFIX + SUFFIX)) // 12
+"""Run ids this long or shorter name a file whatever their characters (a character
+percent-encodes to at most 12 bytes)."""
+
+
 def check_run_id(run_id: Any, where: str = "task") -> str:
     """Return ``run_id`` if it is a non-empty string short enough to name a file."""
     if not isinstance(run_id, str) or not run_id:
         raise ConfigError(f"{where}: run_id: expected a non-empty string, received {run_id!r}")
-    if len(ERROR_PREFIX + file_stem(run_id) + SUFFIX) > MAX_NAME_LENGTH:
+    if len(run_id) > SHORT_RUN_ID and len(ERROR_PREFIX + file_stem(run_id) + SUFFIX) > MAX_NAME_LENGTH:
         raise ConfigError(f"{where}: run_id: expected at most ~200 characters once percent-encoded, received {len(run_id)} characters")
     return run_id
+
+
+PLAIN_CELL_TYPES = frozenset({type(None), bool, int, float, str})
 
 
 def cell_value(value: Any) -> Any:
@@ -124,6 +132,8 @@ def cell_value(value: Any) -> Any:
     ``str``. Every cell has one of these JSON-native types, so a record read back from a
     journal is the record that was written (:meth:`Record.from_line`).
     """
+    if type(value) in PLAIN_CELL_TYPES:  # the common case, decided without conversions
+        return value
     value = to_plain(value)
     if value is None or isinstance(value, (bool, int, float, str)):
         return value
@@ -792,11 +802,11 @@ def check_tasks(tasks: Iterable[Mapping[str, Any]]) -> list[dict[str, Any]]:
     seen: set[str] = set()
     for index, task in enumerate(tasks):
         where = f"tasks[{index}]"
-        if not isinstance(task, Mapping):
+        if type(task) is not dict and not isinstance(task, Mapping):
             raise ConfigError(f"{where}: expected a dict with run_id and seed, received {type(task).__name__}")
         run_id = check_run_id(task.get("run_id"), where)
         seed = task.get("seed")
-        if isinstance(seed, (bool, np.bool_)) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        if type(seed) is not int and (isinstance(seed, (bool, np.bool_)) or not isinstance(seed, (int, np.integer))) or seed < 0:
             raise ConfigError(f"{where}: seed: expected a non-negative integer, received {seed!r}")
         if ERROR_COLUMN in task:
             raise ConfigError(f"{where}: {ERROR_COLUMN}: expected no such key (the column is reserved for failures), received one")
