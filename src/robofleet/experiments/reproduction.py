@@ -18,6 +18,7 @@ paper); :data:`~robofleet.experiments.reproductions.REPRODUCTIONS` is their tabl
 
 from __future__ import annotations
 
+import concurrent.futures
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable, Mapping
@@ -141,7 +142,7 @@ def reproduce(
     *,
     budget: str = "default",
     seeds: int | None = None,
-    executor: str | Executor = "process",
+    executor: str | Executor | concurrent.futures.Executor = "process",
     scheduler: str | None = None,
     workers: int | None = None,
     progress: bool = True,

@@ -93,7 +93,7 @@ LOCK_NAME = ".writer.lock"
 META_FORMAT = b"robofleet.store.format"
 META_WITHOUT_ROWS = b"robofleet.store.finished_without_rows"
 META_COLUMNS = b"robofleet.store.column_first_run"
-BATCH_SECONDS = 60.0
+BATCH_SECONDS = 300.0
 """A batch is written once its first record is this old (its journal holds it meanwhile)."""
 BATCH_CELLS = 2_000_000
 """... or once its rows hold this many cells (bounds the writer's memory)."""

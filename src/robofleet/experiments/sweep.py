@@ -43,6 +43,7 @@ import hashlib
 import itertools
 import json
 import math
+import threading
 from collections import OrderedDict
 from dataclasses import dataclass
 from pathlib import Path
@@ -214,6 +215,7 @@ class SweepPlan:
 SPEC_CACHE_SIZE = 1024
 """Validated grid-point scenarios a process keeps (least recently used dropped first)."""
 _specs: OrderedDict[tuple[str, str], SpecModel] = OrderedDict()
+_specs_lock = threading.Lock()  # runs on a thread pool share the cache
 
 
 def sweep_spec(base: Mapping[str, Any], source: str | None, digest: str, overrides: Mapping[str, Any]) -> SpecModel:
@@ -225,18 +227,20 @@ def sweep_spec(base: Mapping[str, Any], source: str | None, digest: str, overrid
     grid point: the specs are frozen, so later runs of the point reuse it.
     """
     key = (digest, json.dumps(to_plain(dict(overrides)), sort_keys=True, default=str))
-    spec = _specs.get(key)
-    if spec is None:
-        try:
-            data, _ = scenario_data(base, overrides)
-        except ScenarioError as exc:
-            raise (exc.with_source(source) if source else exc) from None
-        spec = spec_from_data(family(data.setdefault("family", DEFAULT_FAMILY), source).spec, data, source)
+    with _specs_lock:
+        spec = _specs.get(key)
+        if spec is not None:
+            _specs.move_to_end(key)
+            return spec
+    try:
+        data, _ = scenario_data(base, overrides)
+    except ScenarioError as exc:
+        raise (exc.with_source(source) if source else exc) from None
+    spec = spec_from_data(family(data.setdefault("family", DEFAULT_FAMILY), source).spec, data, source)
+    with _specs_lock:
         _specs[key] = spec
         if len(_specs) > SPEC_CACHE_SIZE:
             _specs.popitem(last=False)
-    else:
-        _specs.move_to_end(key)
     return spec
 
 
