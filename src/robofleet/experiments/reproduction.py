@@ -7,7 +7,7 @@ tables → markdown, tables → figures. :func:`reproduce` is the only driver: e
 experiment writes the same files into ``out``, resumes the same way (finished runs are
 skipped) and runs on every executor:
 
-``out/runs/<sweep>/``  the Parquet result store of each sweep (one file per run)
+``out/runs/<sweep>/``  the Parquet result store of each sweep (many runs per file)
 ``out/summary.csv``    every summary table, one block per table (column ``table``)
 ``out/table.md``       the markdown tables
 ``out/*.png``          the figures

@@ -71,6 +71,8 @@ def run_tasks(
         On malformed tasks (missing/duplicate ``run_id``, bad ``seed``) or arguments.
     StoreBusyError
         When another process is writing to the same store (one writer at a time).
+    StoreFormatError
+        When a file of the store was written in a later store format (one line naming it).
     Interrupted
         On Ctrl-C (a ``KeyboardInterrupt``): finished runs are kept, and the message says
         how many are stored and that the same call resumes.
