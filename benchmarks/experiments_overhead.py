@@ -38,6 +38,8 @@ import time
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
+from _machine import machine
+
 from robofleet import load_scenario, simulate
 from robofleet.experiments import ResultStore, plan_sweep, run_sweep, run_tasks
 from robofleet.experiments._selftest import trivial
@@ -285,7 +287,9 @@ def main() -> None:
     args = parser.parse_args()
     if args.million_worker:
         million_worker(args.million_worker, str(args.out), args.workers)
-    elif args.million:
+        return
+    print(machine())
+    if args.million:
         with tempfile.TemporaryDirectory() as scratch:
             million(args.million, args.kill_after, args.workers, args.out or Path(scratch) / "store")
     elif args.fig7:

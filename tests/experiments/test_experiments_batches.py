@@ -96,9 +96,14 @@ def kill_part_way(tmp_path, store_dir, markers, n, stop_after, executor):
     holds ``stop_after`` finished tasks."""
     script = KILLER.format(tests=os.path.dirname(__file__), n=n, markers=str(markers), store_dir=str(store_dir), executor=executor)
     proc = subprocess.Popen([sys.executable, "-c", script], start_new_session=True)
-    deadline = time.monotonic() + 120
-    while len(ResultStore(store_dir).finished_ids()) < stop_after and time.monotonic() < deadline and proc.poll() is None:
-        time.sleep(0.01)
+    deadline = time.monotonic() + 600
+
+    def mid_batch() -> bool:
+        journals = list(store_dir.glob(f"{JOURNAL_PREFIX}*")) if store_dir.is_dir() else []
+        return len(ResultStore(store_dir).finished_ids()) >= stop_after and any(p.stat().st_size for p in journals)
+
+    while not mid_batch() and time.monotonic() < deadline and proc.poll() is None:
+        time.sleep(0.005)
     os.killpg(proc.pid, signal.SIGKILL)
     proc.wait()
 
@@ -112,11 +117,10 @@ def test_a_sweep_killed_mid_batch_resumes_exactly_and_ends_with_the_uninterrupte
     markers = tmp_path / "calls"
     markers.mkdir()
     store_dir = tmp_path / "killed"
-    for stop_after in stops:
+    for stop_after in stops:  # killed while a batch is being collected (its journal holds runs)
         kill_part_way(tmp_path, store_dir, markers, n, stop_after, executor)
     stored = ResultStore(store_dir).finished_ids()
     assert len(stored) >= stops[-1] and len(stored) < n
-    assert any(p.name.startswith(JOURNAL_PREFIX) for p in store_dir.iterdir())  # killed with a batch being collected
     started = sum(1 for _ in markers.iterdir())
     tasks = varied_tasks(n, marker_dir=str(markers), sleep=0.004)
     resumed = run_tasks(noisy_sum, tasks, store_dir, executor="serial", progress=False)
@@ -275,3 +279,28 @@ def test_records_survive_the_journal_unchanged():
     assert json.dumps(back.rows, allow_nan=True) == json.dumps(record.rows, allow_nan=True)
     assert [type(v) for v in back.rows[0].values()] == [type(v) for v in record.rows[0].values()]
     assert Record.from_line(record.line()[:-1]) is None
+
+
+def test_the_workers_of_a_killed_sweep_do_not_keep_its_store_locked(tmp_path):
+    """SIGKILL the driving process alone: its worker processes live on for a while, and
+    the next sweep on the store must not be refused because of them."""
+    store_dir = tmp_path / "store"
+    script = textwrap.dedent(
+        f"""
+        from robofleet.experiments import run_tasks
+        from robofleet.experiments._selftest import noisy_sum
+        tasks = [{{"run_id": f"t{{i:03d}}", "seed": i, "sleep": 0.5}} for i in range(40)]
+        run_tasks(noisy_sum, tasks, {str(store_dir)!r}, executor="process", workers=2, progress=False)
+        """
+    )
+    proc = subprocess.Popen([sys.executable, "-c", script], start_new_session=True)
+    try:
+        deadline = time.monotonic() + 600
+        while len(ResultStore(store_dir).finished_ids()) < 2 and time.monotonic() < deadline:
+            time.sleep(0.01)
+        proc.kill()  # the driver only
+        proc.wait()
+        frame = run_tasks(noisy_sum, [{"run_id": "t000", "seed": 0, "sleep": 0.5}], store_dir, executor="serial", progress=False)
+        assert "t000" in set(frame["run_id"])
+    finally:
+        os.killpg(proc.pid, signal.SIGKILL)  # the orphaned workers

@@ -6,8 +6,8 @@ Layout (store format 2)
     The records of many tasks, written together (``n`` counts up, six digits). A task's
     record is its rows, each with the task's fields merged in and ``error`` empty, or, for
     a task that raised, one row of its fields with ``error``, the one-line message. The
-    file's Parquet metadata holds the store format, the ids of finished tasks that
-    produced no rows, and where each column first appears (see :func:`column_order`).
+    file's Parquet metadata holds the store format and the ids of finished tasks that
+    produced no rows. Its columns are in :func:`column_order`.
 ``<store>/.journal-<n>.jsonl``
     The records of the batch being collected, one JSON line per task, appended as each
     task finishes. When the batch is written (every :data:`BATCH_SECONDS`, every
@@ -50,9 +50,11 @@ runs of the same seed, and :func:`deterministic_columns` leaves them out.
 
 from __future__ import annotations
 
+import errno
 import json
 import os
 import re
+import threading
 import time
 import warnings
 from contextlib import contextmanager
@@ -92,13 +94,14 @@ DAMAGED_FOLDER = "_damaged"
 LOCK_NAME = ".writer.lock"
 META_FORMAT = b"robofleet.store.format"
 META_WITHOUT_ROWS = b"robofleet.store.finished_without_rows"
-META_COLUMNS = b"robofleet.store.column_first_run"
 BATCH_SECONDS = 300.0
 """A batch is written once its first record is this old (its journal holds it meanwhile)."""
 BATCH_CELLS = 2_000_000
 """... or once its rows hold this many cells (bounds the writer's memory)."""
 JOURNAL_SYNC_SECONDS = 1.0
 """The journal is fsynced at least this often while records are appended."""
+_writing: set[str] = set()  # the stores this process holds the writer lock of
+_writing_lock = threading.Lock()
 BATCH_NAME = re.compile(rf"{BATCH_PREFIX}(\d+){re.escape(SUFFIX)}")
 JOURNAL_NAME = re.compile(rf"{re.escape(JOURNAL_PREFIX)}(\d+){re.escape(JOURNAL_SUFFIX)}")
 
@@ -326,36 +329,49 @@ class ResultStore:
     # -- one writer --------------------------------------------------------------
     @contextmanager
     def writer_lock(self) -> Iterator[None]:
-        """Hold the store's writer lock (``<store>/.writer.lock``, an advisory ``flock``
-        released by the OS if the process dies) for the duration of the block.
+        """Hold the store's writer lock (``<store>/.writer.lock``) for the duration of the block.
+
+        The lock is a POSIX record lock (``lockf``), which the OS releases when the process
+        dies and which worker processes forked meanwhile do not inherit (an ``flock`` they
+        would: a killed sweep's orphaned workers would keep its store locked), plus a
+        record of the stores this process is writing (record locks do not exclude the
+        process holding them).
 
         Raises
         ------
         StoreBusyError
-            If another process holds it: a second sweep on the same directory is refused
+            If another sweep holds it: a second sweep on the same directory is refused
             rather than racing the first one. (Where ``fcntl`` is missing, e.g. Windows,
-            there is no lock and the store assumes one writer.)
+            only sweeps of this process are excluded.)
         """
-        if fcntl is None:
-            yield
-            return
         self.directory.mkdir(parents=True, exist_ok=True)
-        with open(self.directory / LOCK_NAME, "a+") as handle:
-            try:
-                fcntl.flock(handle.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
-            except BlockingIOError:
+        key = os.path.realpath(self.directory)
+        with _writing_lock:
+            if key in _writing:
+                raise self._busy(str(os.getpid()))
+            _writing.add(key)
+        try:
+            with open(self.directory / LOCK_NAME, "a+") as handle:
+                if fcntl is not None:
+                    try:
+                        fcntl.lockf(handle.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
+                    except OSError as exc:
+                        if exc.errno not in (errno.EACCES, errno.EAGAIN):
+                            raise
+                        handle.seek(0)
+                        raise self._busy(handle.read().strip() or "?") from None
                 handle.seek(0)
-                holder = handle.read().strip() or "?"
-                raise StoreBusyError(f"store: expected a store no other sweep is writing to, received {self.directory}, "
-                                     f"which process {holder} is writing; wait for it or choose another --out") from None
-            handle.seek(0)
-            handle.truncate()
-            handle.write(str(os.getpid()))
-            handle.flush()
-            try:
+                handle.truncate()
+                handle.write(str(os.getpid()))
+                handle.flush()
                 yield
-            finally:
-                fcntl.flock(handle.fileno(), fcntl.LOCK_UN)
+        finally:
+            with _writing_lock:
+                _writing.discard(key)
+
+    def _busy(self, holder: str) -> StoreBusyError:
+        return StoreBusyError(f"store: expected a store no other sweep is writing to, received {self.directory}, "
+                              f"which process {holder} is writing; wait for it or choose another --out")
 
     # -- one schema --------------------------------------------------------------
     def unify_columns(self) -> int:
@@ -374,7 +390,7 @@ class ResultStore:
         for path, schema in schemas.items():
             if not schema.remove_metadata().equals(unified):
                 table = read_store_table(path)
-                self._atomic_write(path.name, conform(table, unified).replace_schema_metadata(file_metadata(path, table.schema)))
+                self._atomic_write(path.name, conform(table, unified).replace_schema_metadata(table.schema.metadata))
                 rewritten += 1
         return rewritten
 
@@ -638,23 +654,17 @@ def read_journal(path: Path) -> list[Record]:
 
 
 def records_table(records: list[Record]) -> pa.Table:
-    """The Parquet table of some records: rows in ``run_id`` order, an ``error`` column
-    always (text), and the metadata of a batch (format, finished tasks without rows,
-    where each column first appears)."""
+    """The Parquet table of some records: rows in ``run_id`` order, columns in
+    :func:`column_order`, an ``error`` column always (text), and the metadata of a batch
+    (format, finished tasks without rows)."""
     ordered = sorted(records, key=lambda r: r.run_id)
     rows = [row for record in ordered for row in record.table_rows()]
     fields = ordered[0].fields if ordered else {"run_id": "", "seed": 0}
     table = rows_to_table(rows) if rows else empty_table({**fields, ERROR_COLUMN: ""})
-    names = [name for name in table.column_names if name != ERROR_COLUMN]
-    table = pa.Table.from_arrays([*(table[name] for name in names), table[ERROR_COLUMN].cast(pa.string())], names=[*names, ERROR_COLUMN])
-    first_run: dict[str, str] = {}
-    for record in ordered:
-        for keys in (record.fields, *record.rows):
-            for key in keys:
-                first_run.setdefault(key, record.run_id)
-    metadata = {META_FORMAT: str(FORMAT).encode(), META_COLUMNS: json.dumps(first_run).encode(),
+    table = table.set_column(table.schema.get_field_index(ERROR_COLUMN), ERROR_COLUMN, table[ERROR_COLUMN].cast(pa.string()))
+    metadata = {META_FORMAT: str(FORMAT).encode(),
                 META_WITHOUT_ROWS: json.dumps(sorted(r.run_id for r in ordered if r.finished and not r.rows)).encode()}
-    return table.replace_schema_metadata(metadata)
+    return table.select(column_order(table.column_names)).replace_schema_metadata(metadata)
 
 
 def finished_without_rows(table: pa.Table, path: Path) -> set[str]:
@@ -664,7 +674,7 @@ def finished_without_rows(table: pa.Table, path: Path) -> set[str]:
     if META_WITHOUT_ROWS in metadata:
         return set(json.loads(metadata[META_WITHOUT_ROWS]))
     if path.name.startswith(RUN_PREFIX) and not table.num_rows:  # format 1: a task without rows has an empty file
-        return {single_file_run_id(path)}
+        return {unquote(path.name[len(RUN_PREFIX):-len(SUFFIX)])}
     return set()
 
 
@@ -680,44 +690,20 @@ def check_format(metadata: Mapping[bytes, bytes], path: Path) -> None:
                                f"of format {written.decode(errors='replace')} (written by a later robofleet; upgrade to read it)")
 
 
-def file_metadata(path: Path, schema: pa.Schema) -> dict[bytes, bytes]:
-    """A store file's metadata, with where its columns first appear added to a
-    single-task file's (so that columns added by :func:`conform` are known as added)."""
-    metadata = dict(schema.metadata or {})
-    if META_COLUMNS not in metadata:
-        metadata[META_COLUMNS] = json.dumps(dict.fromkeys(schema.names, single_file_run_id(path))).encode()
-    return metadata
-
-
-def single_file_run_id(path: Path) -> str:
-    """The run id in the name of a single-task file (``run-<id>.parquet``, ``error-<id>.parquet``)."""
-    return unquote(path.name.split("-", 1)[1][:-len(SUFFIX)])
-
-
-def column_order(schemas: Mapping[Path, pa.Schema]) -> list[str]:
-    """The columns of several store files in one order that does not depend on how the
-    tasks were grouped into files: the order in which they first appear when the records
-    are taken in ``run_id`` order (each file records the first run of each column), the
-    columns of one record in that record's order, and ``error`` last."""
-    first: dict[str, tuple[str, int]] = {}
-    for path, schema in schemas.items():
-        metadata = schema.metadata or {}
-        runs = json.loads(metadata[META_COLUMNS]) if META_COLUMNS in metadata else dict.fromkeys(schema.names, single_file_run_id(path))
-        for position, name in enumerate(schema.names):
-            if name not in runs:  # added to this file by conform: it first appears elsewhere
-                continue
-            key = (runs[name], position)
-            if name not in first or key < first[name]:
-                first[name] = key
-    names = sorted(first, key=lambda name: first[name])
-    return [name for name in names if name != ERROR_COLUMN] + [ERROR_COLUMN]
+def column_order(names: Iterable[str]) -> list[str]:
+    """The columns of a store in one order that does not depend on how its tasks were
+    grouped into files or in which order they finished: ``run_id`` and ``seed``, the
+    others by name, ``error`` last."""
+    names = set(names)
+    first = [name for name in ("run_id", "seed") if name in names]
+    return first + sorted(names - {*first, ERROR_COLUMN}) + ([ERROR_COLUMN] if ERROR_COLUMN in names else [])
 
 
 def unified_schema(schemas: Mapping[Path, pa.Schema]) -> pa.Schema:
-    """One schema for several store files: every column, types promoted, in :func:`column_order`."""
+    """One schema for several store files: every column (``error`` always), types promoted, in :func:`column_order`."""
     merged = pa.unify_schemas([s.remove_metadata() for s in schemas.values()]
                               + [pa.schema([(ERROR_COLUMN, pa.string())])], promote_options="permissive")
-    return pa.schema([merged.field(name) for name in column_order(schemas)])
+    return pa.schema([merged.field(name) for name in column_order(merged.names)])
 
 
 def conform(table: pa.Table, schema: pa.Schema) -> pa.Table:

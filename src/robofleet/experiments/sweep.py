@@ -436,8 +436,8 @@ def run_sweep(
     -------
     pandas.DataFrame
         The rows of this sweep's tasks (finished now or by an earlier run), in task
-        order; one column per grid path, ``run_id``, ``seed``, the summary keys and
-        ``error``. ``frame.attrs`` holds ``store`` (the directory), ``grid`` (the grid
+        order; the columns ``run_id``, ``seed``, one per grid path, the summary keys (by
+        name) and ``error``. ``frame.attrs`` holds ``store`` (the directory), ``grid`` (the grid
         paths) and ``other_rows`` (rows in the store from other sweeps).
     """
     as_executor(executor)
@@ -448,6 +448,8 @@ def run_sweep(
     order = {task["run_id"]: index for index, task in enumerate(plan.tasks)}
     mine = every[every["run_id"].isin(order)]
     frame = mine.sort_values("run_id", key=lambda ids: ids.map(order), kind="stable").reset_index(drop=True)
+    leading = ["run_id", "seed", *plan.grid_keys]
+    frame = frame[leading + [c for c in frame.columns if c not in leading]]
     frame.attrs.update(store=str(plan.out), grid=list(plan.grid_keys), other_rows=int(len(every) - len(mine)))
     return frame
 
