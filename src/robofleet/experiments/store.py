@@ -413,7 +413,7 @@ class ResultStore:
     # -- reading -----------------------------------------------------------------
     def read(self) -> pd.DataFrame:
         """Every stored row (finished and failed tasks, one record per task), ordered by
-        ``run_id`` (a task's rows in their order).
+        ``run_id`` (a task's rows in their order), columns in :func:`column_order`.
 
         The frame always has the columns ``run_id``, ``seed`` and ``error`` (``None`` on
         rows of tasks that finished). The rows of a journal a killed writer left are

@@ -61,7 +61,9 @@ def run_tasks(
     Returns
     -------
     pandas.DataFrame
-        Every row in the store, earlier runs included, ordered by ``run_id``. A task
+        Every row in the store, earlier runs included, ordered by ``run_id``; the
+        columns ``run_id``, ``seed``, the others by name, and ``error`` (whichever
+        executor ran the tasks and however a killed call was resumed). A task
         that raised has one row holding its fields and ``error`` (``"TypeName: message"``);
         ``error`` is ``None`` elsewhere. Failed tasks are retried on the next call.
 
