@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import importlib.util
 import re
+import signal
 from pathlib import Path
 
 import pytest
@@ -10,10 +12,20 @@ import yaml
 
 from robofleet.core.errors import ConfigError
 from robofleet.experiments import batch_cluster
+from robofleet.experiments.clusters import import_jobqueue
 
-jobqueue = pytest.importorskip("dask_jobqueue")
+if importlib.util.find_spec("dask_jobqueue") is None:
+    pytest.skip("dask-jobqueue is not installed", allow_module_level=True)
 SWEEPS_GUIDE = Path(__file__).resolve().parents[2] / "docs" / "sweeps.md"
 ONE_THREAD = ["export OMP_NUM_THREADS=1", "export OPENBLAS_NUM_THREADS=1", "export MKL_NUM_THREADS=1", "export NUMBA_NUM_THREADS=1"]
+
+
+@pytest.fixture(autouse=True)
+def ctrl_c_kept():
+    """Building a cluster leaves Ctrl-C as it was (dask-jobqueue's import replaces it)."""
+    handler = signal.getsignal(signal.SIGINT)
+    yield
+    assert signal.getsignal(signal.SIGINT) is handler
 
 
 def worker_command(script: str) -> str:
@@ -46,6 +58,7 @@ def test_a_pbs_job_asks_for_the_cores_and_memory():
 def test_the_profiles_in_the_sweeps_guide_build_the_job_scripts_it_describes():
     import dask
 
+    jobqueue = import_jobqueue()
     blocks = re.findall(r"```yaml\n(.*?)```", SWEEPS_GUIDE.read_text(), flags=re.S)
     profile = next(yaml.safe_load(block) for block in blocks if "jobqueue" in block)
     settings = {f"jobqueue.{system}.{key}": value for system, keys in profile["jobqueue"].items() for key, value in keys.items()}

@@ -11,6 +11,9 @@ the result store, so the jobs need robofleet installed but no shared file system
 
 from __future__ import annotations
 
+import signal
+import threading
+from types import ModuleType
 from typing import TYPE_CHECKING, Any, Sequence
 
 from ..core import arguments
@@ -55,10 +58,30 @@ def batch_cluster(system: str, *, cores: int, memory: str, walltime: str = "01:0
     if not isinstance(system, str) or system not in BATCH_SYSTEMS:
         raise ConfigError(f"system: expected one of {sorted(BATCH_SYSTEMS)}, received {system!r}")
     cores = arguments.count(cores, "cores", minimum=1)
+    cluster_class = getattr(import_jobqueue(), BATCH_SYSTEMS[system])
+    return cluster_class(cores=cores, processes=cores, memory=memory, walltime=walltime, queue=queue, account=account,
+                         job_script_prologue=[*ONE_THREAD_EACH, *job_script_prologue], **options)
+
+
+def import_jobqueue() -> ModuleType:
+    """The ``dask_jobqueue`` package, imported with Ctrl-C left as it was.
+
+    Importing dask-jobqueue replaces the process's SIGINT handler with one that exits
+    (``sys.exit``), which would turn Ctrl-C during a sweep into an exit without the
+    one-line "interrupted" message; the earlier handler is put back.
+
+    Raises
+    ------
+    RobofleetError
+        When dask-jobqueue is not installed (``pip install 'robofleet[dask]'``).
+    """
+    main = threading.current_thread() is threading.main_thread()
+    handler = signal.getsignal(signal.SIGINT) if main else None
     try:
         import dask_jobqueue
     except ImportError:
         raise RobofleetError("batch clusters need the optional dependency dask-jobqueue: pip install 'robofleet[dask]'") from None
-    cluster_class = getattr(dask_jobqueue, BATCH_SYSTEMS[system])
-    return cluster_class(cores=cores, processes=cores, memory=memory, walltime=walltime, queue=queue, account=account,
-                         job_script_prologue=[*ONE_THREAD_EACH, *job_script_prologue], **options)
+    finally:
+        if main and handler is not None:
+            signal.signal(signal.SIGINT, handler)
+    return dask_jobqueue
