@@ -41,7 +41,7 @@ def assert_resumed_without_rerun(declaration, first, stored, second, out):
 def test_buavc_smallest_budget_writes_runs_tables_figure_and_resumes(tmp_path):
     first, stored, second = reproduce_twice(buavc.REPRODUCTION, tmp_path)
     assert first.failed == 0
-    assert {sweep: len(files) for sweep, files in stored.items()} == {"buavc_noise": 3, "buavc_delta": 1}
+    assert {sweep: len(frame) for sweep, frame in first.frames.items()} == {"buavc_noise": 3, "buavc_delta": 1}
     noise, delta = first.tables["noise"], first.tables["delta"]
     assert list(zip(noise["method"], noise["sigma"])) == [("buavc", 0.1), ("bvc", 0.1), ("bvc_inflated", 0.1)]
     assert delta["delta"].tolist() == [0.1] and delta["runs"].tolist() == [1]
@@ -61,7 +61,7 @@ def test_buavc_smallest_budget_writes_runs_tables_figure_and_resumes(tmp_path):
 def test_buavc_models_smallest_budget_writes_runs_tables_figures_and_resumes(tmp_path):
     first, stored, second = reproduce_twice(buavc_models.REPRODUCTION, tmp_path)
     assert first.failed == 0
-    assert sum(len(files) for files in stored.values()) == 4 + 3 + 3 + 3 + 3 + 3 + 1 + 1
+    assert sum(len(frame) for frame in first.frames.values()) == 4 + 3 + 3 + 3 + 3 + 3 + 1 + 1
     noise, delta = first.tables["noise"], first.tables["delta"]
     expected = ([("single_integrator", m, 0.1) for m in ("buavc", "bvc", "bvc_inflated", "orca")]
                 + [("double_integrator", m, 0.1) for m in ("buavc", "bvc", "bvc_inflated")]

@@ -5,6 +5,7 @@ from __future__ import annotations
 import itertools
 import json
 
+import numpy as np
 import pandas as pd
 import pytest
 import yaml
@@ -209,3 +210,50 @@ def test_parameter_columns_hold_validated_values(tmp_path, toy_family):
     assert [json.loads(v) for v in frame["robots"]] == [{"n": 2, "radius": 0.1}, {"n": 3, "radius": 0.3}]
     assert frame["n_robots"].tolist() == [2, 3]
     assert summarize_sweep(frame)["runs"].tolist() == [1, 1]
+
+
+def test_the_scenario_file_is_read_once_and_each_grid_point_validated_once(tmp_path, toy_family, monkeypatch):
+    """A sweep of 2 grid points × 5 seeds reads its scenario file once and validates each
+    point once (while planning); its 10 runs reuse those specs."""
+    from robofleet import load_scenario
+    from robofleet.core import config
+    from robofleet.experiments import sweep as sweep_module
+
+    sweep_module._specs.clear()
+    path = write_sweep(tmp_path, grid={"robots.n": [2, 4]}, seeds=5)
+    reads, validations = [], []
+    read_mapping, spec_from_data = config.read_mapping, sweep_module.spec_from_data
+    monkeypatch.setattr(config, "read_mapping", lambda ref: reads.append(ref) or read_mapping(ref))
+    monkeypatch.setattr(sweep_module, "spec_from_data", lambda *a: validations.append(a[2]) or spec_from_data(*a))
+    frame = run_sweep(path, executor="serial", progress=False)
+    assert len(frame) == 10 and frame["error"].isna().all()
+    assert [str(r) for r in reads if not isinstance(r, dict)].count(str(tmp_path / "toy.yaml")) == 1
+    assert validations == [str(tmp_path / "toy.yaml")] * 2
+    for n in (2, 4):  # the cached spec is the one load_scenario gives, file included
+        spec = sweep_module.sweep_spec(*(plan_sweep(path).fn.keywords[k] for k in ("scenario", "source", "digest")), {"robots.n": n})
+        reference = load_scenario(tmp_path / "toy.yaml", overrides={"robots.n": n})
+        assert spec == reference and spec.source == reference.source
+
+
+def test_an_edited_scenario_file_is_validated_anew(tmp_path, toy_family):
+    """Specs are cached by the scenario's content: an edit between two sweeps in one process is seen."""
+    path = write_sweep(tmp_path, grid={}, seeds=2)
+    first = run_sweep(path, executor="serial", progress=False, out=tmp_path / "a")
+    (tmp_path / "toy.yaml").write_text(yaml.safe_dump({**SCENARIO, "steps": 2}))
+    second = run_sweep(path, executor="serial", progress=False, out=tmp_path / "a")
+    assert set(first["run_id"]).isdisjoint(second["run_id"])
+    from robofleet import load_scenario, simulate
+
+    replay = simulate(load_scenario(tmp_path / "toy.yaml"), seed=int(second["seed"][0])).summary()
+    assert second["final_spread"][0] == replay["final_spread"] != first["final_spread"][0]
+
+
+def test_run_ids_hashed_per_grid_point_are_the_stable_run_ids():
+    from robofleet.experiments.sweep import run_ids
+
+    rng = np.random.default_rng(4)
+    for _ in range(30):
+        scenario = {"family": "toy", "steps": int(rng.integers(1, 99)), "robots": {"n": int(rng.integers(1, 9))}, "x": [1.5, None, "é"]}
+        parameters = {"noise.sigma": float(rng.random()), "robots": {"n": 3}, "a+b": "text"}
+        seeds = tuple(int(s) for s in rng.integers(0, 2**63, size=5, dtype=np.uint64))
+        assert run_ids(scenario, parameters, seeds) == [stable_run_id(scenario, parameters, seed) for seed in seeds]

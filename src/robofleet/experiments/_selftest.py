@@ -18,7 +18,7 @@ def noisy_sum(task: dict) -> dict | list[dict]:
     """A seeded computation: statistics of ``n`` standard normal draws.
 
     Task keys (all optional besides ``seed``): ``n`` (draws, default 4), ``rows`` (return
-    that many rows, one per ``part``), ``fail`` (raise ``ValueError`` when true),
+    a list of that many rows, one per ``part``; none for 0), ``fail`` (raise ``ValueError`` when true),
     ``sleep`` (seconds to wait first), ``crash`` (end the process at once), ``marker_dir`` (write one empty file per call
     there, so tests count calls across processes). The result depends only on the task.
     """
@@ -36,7 +36,7 @@ def noisy_sum(task: dict) -> dict | list[dict]:
         {"part": part, "total": float(d.sum()), "largest": float(d.max()), "label": f"p{part}", "compute_seconds": time.perf_counter() - start}
         for part, d in enumerate(draws)
     ]
-    return rows if "rows" in task else rows[0]
+    return rows[:int(task["rows"])] if "rows" in task else rows[0]
 
 
 def trivial(task: dict) -> dict:

@@ -7,7 +7,7 @@ tables → markdown, tables → figures. :func:`reproduce` is the only driver: e
 experiment writes the same files into ``out``, resumes the same way (finished runs are
 skipped) and runs on every executor:
 
-``out/runs/<sweep>/``  the Parquet result store of each sweep (one file per run)
+``out/runs/<sweep>/``  the Parquet result store of each sweep (many runs per file)
 ``out/summary.csv``    every summary table, one block per table (column ``table``)
 ``out/table.md``       the markdown tables
 ``out/*.png``          the figures
@@ -18,6 +18,7 @@ paper); :data:`~robofleet.experiments.reproductions.REPRODUCTIONS` is their tabl
 
 from __future__ import annotations
 
+import concurrent.futures
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable, Mapping
@@ -141,7 +142,7 @@ def reproduce(
     *,
     budget: str = "default",
     seeds: int | None = None,
-    executor: str | Executor = "process",
+    executor: str | Executor | concurrent.futures.Executor = "process",
     scheduler: str | None = None,
     workers: int | None = None,
     progress: bool = True,

@@ -26,7 +26,10 @@ A sweep file (YAML) or mapping has the keys
     mirror-image keys) is empty in the rows of runs whose summary lacks it.
 
 Every combination's scenario is validated before anything runs, so a grid value that
-makes the scenario invalid is reported at once. Each row of the result is the run's
+makes the scenario invalid is reported at once. The scenario file is read once, in the
+driving process, and travels with the task function; each worker validates each grid
+point once (:func:`sweep_spec`, kept for the worker's later runs of that point) and then
+only simulates. Each row of the result is the run's
 ``trace.summary()`` plus ``run_id``, ``seed`` and one column per grid path (named by the
 dotted path). ``run_id`` is a stable hash of (scenario, parameters, seed): editing the
 scenario or the grid gives new ids, while re-running the same sweep skips what finished.
@@ -34,11 +37,14 @@ scenario or the grid gives new ids, while re-running the same sweep skips what f
 
 from __future__ import annotations
 
+import concurrent.futures
 import functools
 import hashlib
 import itertools
 import json
 import math
+import threading
+from collections import OrderedDict
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable, Mapping
@@ -51,8 +57,8 @@ from ..core import arguments
 from ..core.errors import ConfigError, Described, ScenarioError, short_repr
 from ..core.rng import MAX_SEED, spawn_seeds
 from ..core.trace import CORE_SUMMARY_KEYS, to_plain
-from ..core.config import DEFAULT_FAMILY, SpecModel, read_mapping, set_path, validate_model
-from ..scenarios import catalogue, family, load_scenario, simulate
+from ..core.config import DEFAULT_FAMILY, SpecModel, read_mapping, scenario_data, set_path, spec_from_data, validate_model
+from ..scenarios import catalogue, family, read_scenario, simulate
 from .executors import Executor, as_executor
 from .store import ERROR_COLUMN, ResultStore
 from .tasks import run_tasks
@@ -206,11 +212,43 @@ class SweepPlan:
     out: Path
 
 
-def simulate_task(task: dict, *, scenario: str | dict, fixed: Mapping[str, Any], grid_keys: tuple[str, ...],
-                  metrics: tuple[str, ...] | None) -> dict:
+SPEC_CACHE_SIZE = 1024
+"""Validated grid-point scenarios a process keeps (least recently used dropped first)."""
+_specs: OrderedDict[tuple[str, str], SpecModel] = OrderedDict()
+_specs_lock = threading.Lock()  # runs on a thread pool share the cache
+
+
+def sweep_spec(base: Mapping[str, Any], source: str | None, digest: str, overrides: Mapping[str, Any]) -> SpecModel:
+    """The validated scenario of one grid point: ``base`` (a scenario mapping read from
+    ``source``, whose content hashes to ``digest``) with ``overrides`` applied.
+
+    Validated exactly as ``load_scenario(source, overrides=overrides)`` validates (same
+    model, same file named in errors and kept as ``spec.source``), once per process and
+    grid point: the specs are frozen, so later runs of the point reuse it.
+    """
+    key = (digest, json.dumps(to_plain(dict(overrides)), sort_keys=True, default=str))
+    with _specs_lock:
+        spec = _specs.get(key)
+        if spec is not None:
+            _specs.move_to_end(key)
+            return spec
+    try:
+        data, _ = scenario_data(base, overrides)
+    except ScenarioError as exc:
+        raise (exc.with_source(source) if source else exc) from None
+    spec = spec_from_data(family(data.setdefault("family", DEFAULT_FAMILY), source).spec, data, source)
+    with _specs_lock:
+        _specs[key] = spec
+        if len(_specs) > SPEC_CACHE_SIZE:
+            _specs.popitem(last=False)
+    return spec
+
+
+def simulate_task(task: dict, *, scenario: dict, source: str | None, digest: str, fixed: Mapping[str, Any],
+                  grid_keys: tuple[str, ...], metrics: tuple[str, ...] | None) -> dict:
     """Run one sweep task: the scenario with the sweep's overrides and the task's grid
-    values, at the task's seed."""
-    spec = load_scenario(scenario, overrides={**fixed, **expand_overrides({key: task[key] for key in grid_keys})})
+    values (:func:`sweep_spec`), at the task's seed."""
+    spec = sweep_spec(scenario, source, digest, {**fixed, **expand_overrides({key: task[key] for key in grid_keys})})
     summary = simulate(spec, seed=task["seed"], progress=False).summary()
     if metrics is None:
         return summary
@@ -221,6 +259,23 @@ def stable_run_id(scenario: Mapping, parameters: Mapping, seed: int) -> str:
     """A hash of (scenario, parameters, seed), the same in every process and session."""
     text = json.dumps({"scenario": to_plain(scenario), "parameters": to_plain(parameters), "seed": int(seed)}, sort_keys=True, default=str)
     return hashlib.blake2b(text.encode(), digest_size=10).hexdigest()
+
+
+def run_ids(scenario: Mapping, parameters: Mapping, seeds: tuple[int, ...]) -> list[str]:
+    """``[stable_run_id(scenario, parameters, seed) for seed in seeds]``, hashing the
+    scenario and parameters once: the JSON text :func:`stable_run_id` hashes is
+    ``{"parameters": P, "scenario": S, "seed": N}`` (keys sorted), so the hash state after
+    its part before ``N`` is copied for each seed."""
+    def text(value: Any) -> str:
+        return json.dumps(to_plain(value), sort_keys=True, default=str)
+
+    head = hashlib.blake2b(f'{{"parameters": {text(parameters)}, "scenario": {text(scenario)}, "seed": '.encode(), digest_size=10)
+    out = []
+    for seed in seeds:
+        hasher = head.copy()
+        hasher.update(f"{int(seed)}}}".encode())
+        out.append(hasher.hexdigest())
+    return out
 
 
 def plan_sweep(sweep_file_or_mapping: str | Path | Mapping[str, Any], out: str | Path | None = None) -> SweepPlan:
@@ -240,27 +295,51 @@ def plan_sweep(sweep_file_or_mapping: str | Path | Mapping[str, Any], out: str |
     data, source = read_mapping(ref)
     spec: SweepSpec = validate_model(SweepSpec, data, source)
     scenario_ref = sweep_scenario(spec, source)
+    try:
+        base = SweepScenario.read(scenario_ref)
+    except ScenarioError as exc:
+        raise named_in_sweep(exc, {}, source) from None
     grid_keys = tuple(spec.grid)
     combinations = tuple(
-        check_combination(scenario_ref, dict(zip(grid_keys, values)), source, spec.overrides)
+        check_combination(base, dict(zip(grid_keys, values)), source, spec.overrides)
         for values in itertools.product(*spec.grid.values())
     )
     check_distinct_points(combinations, source)
-    scenario = read_mapping(scenario_ref)[0]
+    scenario = read_mapping(base.mapping)[0]
     for key, value in spec.overrides.items():
         set_path(scenario, key, value)
     if spec.metrics is not None:
         check_metrics(spec.metrics, scenario.get("family", DEFAULT_FAMILY), source)
     seeds = tuple(spawn_seeds(spec.root_seed, spec.seeds) if isinstance(spec.seeds, int) else spec.seeds)
     tasks = tuple(
-        {"run_id": stable_run_id(scenario, combination, seed), "seed": seed, **combination}
+        {"run_id": run_id, "seed": seed, **combination}
         for combination in combinations
-        for seed in seeds
+        for run_id, seed in zip(run_ids(scenario, combination, seeds), seeds)
     )
-    fn = functools.partial(simulate_task, scenario=scenario_ref, fixed=dict(spec.overrides), grid_keys=grid_keys, metrics=None if spec.metrics is None else tuple(spec.metrics))
+    fn = functools.partial(simulate_task, scenario=base.mapping, source=base.source, digest=base.digest, fixed=dict(spec.overrides),
+                           grid_keys=grid_keys, metrics=None if spec.metrics is None else tuple(spec.metrics))
     stem = Path(source).stem if source else "sweep"
     out_dir = Path(out) if out is not None else Path(spec.out) if spec.out else Path("results") / stem
     return SweepPlan(source, scenario, grid_keys, combinations, seeds, tasks, fn, out_dir)
+
+
+@dataclass(frozen=True)
+class SweepScenario:
+    """The scenario a sweep's runs start from, read once: its mapping, its file (``None``
+    for an inline mapping) and a hash of its content (which keys the workers' caches)."""
+
+    mapping: dict
+    source: str | None
+    digest: str
+
+    @classmethod
+    def read(cls, ref: str | dict) -> SweepScenario:
+        mapping, source = read_scenario(ref)
+        text = json.dumps({"source": source, "scenario": to_plain(mapping)}, sort_keys=True, default=str)
+        return cls(mapping, source, hashlib.blake2b(text.encode(), digest_size=16).hexdigest())
+
+    def spec(self, overrides: Mapping[str, Any]) -> SpecModel:
+        return sweep_spec(self.mapping, self.source, self.digest, overrides)
 
 
 def sweep_scenario(spec: SweepSpec, source: str | None) -> str | dict:
@@ -277,7 +356,7 @@ def sweep_scenario(spec: SweepSpec, source: str | None) -> str | dict:
         raise ScenarioError("scenario", exc.expected, exc.received, source=source) from None
 
 
-def check_combination(scenario_ref: str | dict, combination: dict, source: str | None, fixed: Mapping[str, Any] | None = None) -> dict:
+def check_combination(scenario: SweepScenario, combination: dict, source: str | None, fixed: Mapping[str, Any] | None = None) -> dict:
     """Validate the scenario with one grid combination; re-raise naming the sweep file.
 
     Returns the combination with each value as the validated scenario holds it (e.g. the
@@ -285,13 +364,18 @@ def check_combination(scenario_ref: str | dict, combination: dict, source: str |
     and run ids carry the values that were actually simulated.
     """
     try:
-        spec = load_scenario(scenario_ref, overrides={**(fixed or {}), **expand_overrides(combination)})
+        spec = scenario.spec({**(fixed or {}), **expand_overrides(combination)})
     except ScenarioError as exc:
-        where = "scenario" if not combination else "grid " + ", ".join(f"{k}={v!r}" for k, v in combination.items())
-        inner = f"{exc.source or 'inline scenario'}" + (f": {exc.field}" if exc.field else "")
-        raise ScenarioError(f"{where} → {inner}", exc.expected, exc.received, source=source) from None
+        raise named_in_sweep(exc, combination, source) from None
     dumped = spec.model_dump(mode="json")
     return {key: get_path(dumped, key.split("+")[0], value) for key, value in combination.items()}
+
+
+def named_in_sweep(exc: ScenarioError, combination: Mapping[str, Any], source: str | None) -> ScenarioError:
+    """A scenario's error (reading it, or with one grid combination) naming the sweep file first."""
+    where = "scenario" if not combination else "grid " + ", ".join(f"{k}={v!r}" for k, v in combination.items())
+    inner = f"{exc.source or 'inline scenario'}" + (f": {exc.field}" if exc.field else "")
+    return ScenarioError(f"{where} → {inner}", exc.expected, exc.received, source=source)
 
 
 def check_metrics(metrics: list[str], family_name: str, source: str | None) -> None:
@@ -330,7 +414,7 @@ def get_path(mapping: Mapping, dotted: str, default: Any) -> Any:
 
 def run_sweep(
     sweep_file_or_mapping: str | Path | Mapping[str, Any],
-    executor: str | Executor = "process",
+    executor: str | Executor | concurrent.futures.Executor = "process",
     scheduler: str | None = None,
     progress: bool = True,
     *,
@@ -352,8 +436,8 @@ def run_sweep(
     -------
     pandas.DataFrame
         The rows of this sweep's tasks (finished now or by an earlier run), in task
-        order; one column per grid path, ``run_id``, ``seed``, the summary keys and
-        ``error``. ``frame.attrs`` holds ``store`` (the directory), ``grid`` (the grid
+        order; the columns ``run_id``, ``seed``, one per grid path, the summary keys (by
+        name) and ``error``. ``frame.attrs`` holds ``store`` (the directory), ``grid`` (the grid
         paths) and ``other_rows`` (rows in the store from other sweeps).
     """
     as_executor(executor)
@@ -364,6 +448,8 @@ def run_sweep(
     order = {task["run_id"]: index for index, task in enumerate(plan.tasks)}
     mine = every[every["run_id"].isin(order)]
     frame = mine.sort_values("run_id", key=lambda ids: ids.map(order), kind="stable").reset_index(drop=True)
+    leading = ["run_id", "seed", *plan.grid_keys]
+    frame = frame[leading + [c for c in frame.columns if c not in leading]]
     frame.attrs.update(store=str(plan.out), grid=list(plan.grid_keys), other_rows=int(len(every) - len(mine)))
     return frame
 
