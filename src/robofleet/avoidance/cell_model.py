@@ -14,7 +14,7 @@ In a 3-D space every robot's cell is built in R³ from all estimates; ground rob
 cell's section with that plane (:func:`ground_section`). Their Σ has no z term, so the
 planes between robots of such a fleet come from ``σ² I`` and only the buffers from Σ
 (:func:`separator_covariances`); their route runs around the footprints of the boxes that
-reach their plane (:func:`ground_footprints`). The loop (:mod:`.simulation`), the safety
+reach their plane (:func:`ground_footprints`). The loop (:mod:`robofleet.avoidance.simulation`), the safety
 filter, the guarantees and the environment build their cells from here.
 """
 

@@ -110,7 +110,8 @@ class CondensedSQP:
     Parameters
     ----------
     step : symbolic discrete step ``(x, u) -> x⁺`` (casadi column vectors)
-    nx, nu, dim : state, input and position dimensions
+    nx, nu, dim : int
+        the state, input and position dimensions
     horizon : ``N``
     u_lo, u_hi : input bounds ``(nu,)``
     input_weight : ``w_u``

@@ -25,7 +25,7 @@ The stages (each its own module, with its design, equations and guarantee):
 ``right_hand``     :mod:`.right_hand`: robots a neighbour blocks veer right
 ``band``           :mod:`.band`: robots deep in an obstacle's band steer back into the cell
 ``keep``           the model's cell-keeping controller
-``progress``       :mod:`.progress`: which robots are stuck; their recovery starts
+``progress``       :mod:`robofleet.avoidance.navigation.progress`: which robots are stuck; their recovery starts
 =================  ==========================================================================
 """
 

@@ -1,7 +1,7 @@
 """Recovery stage: the deadlock heuristic of Zhu et al. 2022, appendix C
 (docs/theory/buavc.md "Deadlock heuristic").
 
-When the progress checker (:mod:`.progress`) finds a robot stuck, the robot recovers:
+When the progress checker (:mod:`robofleet.avoidance.navigation.progress`) finds a robot stuck, the robot recovers:
 
 * **Obstacle branch** (single integrators without a route): if an obstacle constraint is
   active at the projected target, head for the vertex ``v`` of that obstacle, grown by the
