@@ -90,5 +90,5 @@ def test_viz_imports_only_core_and_its_own_helpers():
     tree = ast.parse(Path(viz.__file__).read_text())
     relative = {node.module for node in ast.walk(tree) if isinstance(node, ast.ImportFrom) and node.level}
     absolute = {alias.name for node in ast.walk(tree) if isinstance(node, ast.Import) for alias in node.names}
-    assert relative <= {"core.trace", "core.workspace", "animation"}
+    assert relative <= {"core.trace", "core.workspace", "animation", "avoidance_geometry"}
     assert not any(name.startswith("robofleet") for name in absolute)

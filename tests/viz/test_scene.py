@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import json
 import re
+import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -12,7 +14,7 @@ import pytest
 from robofleet.cli.main import main
 from robofleet.core.errors import ConfigError
 from robofleet.core.trace import Trace
-from robofleet.viz import avoidance as avoidance_figures
+from robofleet.viz import avoidance_geometry
 from robofleet.viz.replay import avoidance, coordination, flocking, search
 from robofleet.viz.replay.page import replay_html
 from robofleet.viz.replay.report import markdown_html, report_html
@@ -74,11 +76,11 @@ def test_encoding_keeps_nan_and_integer_types():
 def test_batched_cells_equal_the_one_by_one_clip(traces):
     trace = traces["avoidance"]
     A, b = trace.arrays["cell_A"][::7].reshape(-1, *trace.arrays["cell_A"].shape[2:]), trace.arrays["cell_b"][::7].reshape(-1, trace.arrays["cell_b"].shape[-1])
-    clip = avoidance_figures.clip_region(trace)
-    counts, vertices = avoidance_figures.cell_polygons(A, b, clip)
+    clip = avoidance_geometry.clip_region(trace)
+    counts, vertices = avoidance_geometry.cell_polygons(A, b, clip)
     starts = np.concatenate([[0], np.cumsum(counts)])
     for k in range(len(A)):
-        one = avoidance_figures.cell_polygon(A[k], b[k], clip)
+        one = avoidance_geometry.cell_polygon(A[k], b[k], clip)
         batch = vertices[starts[k]:starts[k + 1]]
         assert (len(one) >= 3) == (counts[k] > 0)
         if counts[k]:
@@ -208,3 +210,19 @@ def test_a_trace_of_an_unknown_family_is_refused(traces, tmp_path, capsys):
     Trace("nosuch", trace.arrays, trace.events, trace.metadata, trace.results, trace.workspace).save(tmp_path / "run")
     code, _, err = run_cli(["view", str(tmp_path / "run"), "--no-open"], capsys)
     assert code == 2 and "family" in err
+
+
+def test_building_a_replay_page_loads_no_plotting_library(traces, tmp_path):
+    """The replay page is computed from the trace with numpy alone: a fresh process that
+    loads saved traces of every family and writes their pages never imports matplotlib."""
+    for name, trace in traces.items():
+        trace.save(tmp_path / name)
+    code = ("import sys\nfrom pathlib import Path\nfrom robofleet.core.trace import Trace\n"
+            "from robofleet.viz.replay import scene_builder\nfrom robofleet.viz.replay.page import write_html\n"
+            f"for run in sorted(Path({str(tmp_path)!r}).iterdir()):\n"
+            "    trace = Trace.load(run)\n    write_html(scene_builder(trace.family)(trace), run / 'replay.html')\n"
+            "print('matplotlib' in sys.modules)")
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
+    assert result.returncode == 0, result.stderr[-2000:]
+    assert result.stdout.split()[-1] == "False"
+    assert all((tmp_path / name / "replay.html").is_file() for name in traces)

@@ -262,8 +262,8 @@ def filter_robot(settings: FilterSettings, view: FleetView, robot: int, desired:
 
 def cell_vertices(cells: dict[int, tuple[np.ndarray, np.ndarray]], positions: np.ndarray, half_width: float) -> dict[int, np.ndarray]:
     """Each cell ``{p : A p ≤ b}`` as polygon vertices (counter-clockwise), clipped to the
-    box ``half_width`` around all robots, computed together (:func:`~robofleet.viz.avoidance.cell_polygons`)."""
-    from ..viz.avoidance import cell_polygons
+    box ``half_width`` around all robots, computed together (:func:`~robofleet.viz.avoidance_geometry.cell_polygons`)."""
+    from ..viz.avoidance_geometry import cell_polygons
 
     if not cells:
         return {}

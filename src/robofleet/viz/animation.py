@@ -19,6 +19,7 @@ from PIL import Image
 from ..core.files import replacing
 from ..core.progress import tracked
 from ..core.trace import Trace
+from .framing import frame_indices, method_of, run_title
 
 PALETTE_THREADS = 2
 """Threads computing the GIF frames' palettes while the main thread draws."""
@@ -106,38 +107,6 @@ def write_gif(images: list[Image.Image], path: Path, fps: int) -> None:
     only once complete, :func:`~robofleet.core.files.replacing`)."""
     with replacing(path) as temp:
         images[0].save(temp, save_all=True, append_images=images[1:], duration=int(1000 / fps), loop=0)
-
-
-def frame_indices(n_steps: int, max_frames: int = 150) -> list[int]:
-    """At most ``max_frames`` evenly spaced step indices, always including the last."""
-    if n_steps <= max_frames:
-        return list(range(n_steps))
-    stride = -(-n_steps // max_frames)
-    idx = list(range(0, n_steps, stride))
-    if idx[-1] != n_steps - 1:
-        idx.append(n_steps - 1)
-    return idx
-
-
-def method_of(trace: Trace) -> str:
-    """The method a run used, as its family records it (``method``, else ``algorithm`` and scheduler)."""
-    md = trace.metadata
-    if md.get("method"):
-        return str(md["method"])
-    algorithm = md.get("algorithm_label") or md.get("algorithm")
-    if isinstance(algorithm, dict):
-        algorithm = algorithm.get("kind")
-    scheduler = md.get("scheduler")
-    if isinstance(scheduler, dict):
-        scheduler = str(scheduler.get("kind", "")).upper()
-    return " · ".join(str(p) for p in (algorithm, scheduler) if p)
-
-
-def run_title(trace: Trace) -> str:
-    """``scenario · method · seed S``: the title every figure and animation of a run starts with."""
-    parts = [trace.scenario or trace.family, method_of(trace)]
-    seed = trace.metadata.get("seed")
-    return " · ".join(p for p in parts if p) + (f" · seed {seed}" if seed is not None else "")
 
 
 def proxy(label: str, *, color: Any = "k", marker: str = "", ls: str = "", ms: float = 7, mfc: Any = None, lw: float = 1.5) -> Line2D:

@@ -7,8 +7,8 @@ from __future__ import annotations
 import numpy as np
 
 from ...core.trace import Trace
-from ..animation import run_title
-from ..avoidance import (
+from ..framing import run_title
+from ..avoidance_geometry import (
     TRAIL_STEPS,
     box_footprint,
     cell_polygons,

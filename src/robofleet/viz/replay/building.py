@@ -20,7 +20,7 @@ import numpy as np
 from ...core.errors import ConfigError
 from ...core.trace import Trace
 from ...core.workspace import Workspace
-from ..animation import frame_indices
+from ..framing import frame_indices
 from . import MAX_FRAMES
 from .scene import Field, SceneEvents, Shape, frames_of_steps, legend_entry
 
@@ -150,6 +150,16 @@ def event_texts(events) -> tuple[tuple[str, ...], np.ndarray]:
     return tuple(table), codes
 
 
+def sorted_unique(keys: np.ndarray, bound: int) -> np.ndarray:
+    """``np.unique(keys)`` for integers in ``[0, bound)``: through a mark per possible key
+    (linear time) when ``bound`` is at most a few times the number of keys, else by sorting."""
+    if bound <= 8 * len(keys) + 1024:
+        seen = np.zeros(bound, bool)
+        seen[keys] = True
+        return np.flatnonzero(seen)
+    return np.unique(keys)
+
+
 def event_marks(events: SceneEvents, coords: np.ndarray, kinds: Iterable[str], hold: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Offsets, points and robots of rings at the robots of ``events`` of ``kinds``, each
     shown for ``hold`` frames from its frame (the robot's position at each of them; one
@@ -160,7 +170,7 @@ def event_marks(events: SceneEvents, coords: np.ndarray, kinds: Iterable[str], h
     shown = (frame[:, None] + np.arange(max(1, hold))[None, :]).reshape(-1)
     robots = np.repeat(robot, max(1, hold))
     keep = shown < n_frames
-    key = np.unique(shown[keep] * n_robots + robots[keep])  # sorted by frame, then robot
+    key = sorted_unique(shown[keep] * n_robots + robots[keep], n_frames * n_robots)  # by frame, then robot
     frames, robots = key // n_robots, key % n_robots
     offsets = np.concatenate([[0], np.cumsum(np.bincount(frames, minlength=n_frames))])
     return offsets, coords[frames, robots, :2].reshape(-1, 2), robots.astype(np.int64)

@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 
 from ...core.trace import Trace
-from ..animation import run_title
+from ..framing import run_title
 from .building import (
     MAX_FRAMES,
     event_marks,
