@@ -79,6 +79,18 @@ class Grid:
         return np.where((self.neighbours >= 0)[:, :, None], vec / self.a, 0.0)
 
     @cached_property
+    def edge_unit_headings(self) -> np.ndarray:
+        """``(V, k)`` heading (``arctan2``) of each edge's unit vector (an LFP robot sliding along it)."""
+        units = self.edge_units
+        return np.arctan2(units[:, :, 1], units[:, :, 0])
+
+    @cached_property
+    def edge_headings(self) -> np.ndarray:
+        """``(V, k)`` heading (``arctan2``) of each edge from its vertex (a robot turning to it)."""
+        vec = self.points[self.candidates] - self.points[:, None, :]
+        return np.arctan2(vec[:, :, 1], vec[:, :, 0])
+
+    @cached_property
     def candidates(self) -> np.ndarray:
         """``neighbours`` with ``-1`` padding replaced by vertex 0 (masked by ``edge_ok`` / sensing)."""
         return np.maximum(self.neighbours, 0)
