@@ -8,6 +8,7 @@ the detected share of a run is one sparse matrix–vector product.
 
 from __future__ import annotations
 
+import numba
 import numpy as np
 import shapely
 from scipy import sparse
@@ -48,9 +49,25 @@ class CoverageProbe:
         return (self.incidence @ np.asarray(visited, dtype=float)) > 0
 
     def detected_share(self, visited: np.ndarray) -> float:
-        """Share of ``A_d`` detected from the ``visited (V,)`` vertices."""
-        return float(self.detected(visited).mean()) if len(self.samples) else 1.0
+        """Share of ``A_d`` detected from the ``visited (V,)`` vertices (the samples with a
+        visited vertex in their row of the incidence, counted in one compiled pass)."""
+        if not len(self.samples):
+            return 1.0
+        inc = self.incidence
+        return detected_count(inc.indptr, inc.indices, np.asarray(visited, dtype=bool)) / len(self.samples)
 
     def undetected(self, visited: np.ndarray) -> np.ndarray:
         """Sample points ``(m, 2)`` not detected from any visited vertex."""
         return self.samples[~self.detected(visited)]
+
+
+@numba.njit(cache=True)
+def detected_count(indptr, indices, visited):
+    """Rows of a CSR incidence (samples × vertices) holding at least one ``visited`` vertex."""
+    count = 0
+    for row in range(len(indptr) - 1):
+        for e in range(indptr[row], indptr[row + 1]):
+            if visited[indices[e]]:
+                count += 1
+                break
+    return count

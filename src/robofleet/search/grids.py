@@ -109,6 +109,11 @@ class Grid:
         graph = sparse.coo_matrix((np.ones(len(src)), (src, self.neighbours[src, slot])), shape=(self.n_vertices,) * 2)
         return csgraph.connected_components(graph, directed=False)[1]
 
+    @cached_property
+    def n_components(self) -> int:
+        """Number of connected components of the graph of travellable edges."""
+        return int(self.components.max(initial=-1)) + 1
+
     @property
     def n_vertices(self) -> int:
         return len(self.points)
@@ -125,7 +130,9 @@ class Grid:
     def reachable_from(self, starts: np.ndarray) -> np.ndarray:
         """Boolean mask of vertices reachable from ``starts`` along travellable edges."""
         labels = self.components
-        return np.isin(labels, labels[np.asarray(starts, dtype=np.intp)])
+        holds_start = np.zeros(self.n_components, dtype=bool)
+        holds_start[labels[np.asarray(starts, dtype=np.intp)]] = True
+        return holds_start[labels]
 
     def border_vertices(self) -> np.ndarray:
         """Accessible vertices of the outermost accessible ring along the outer border.

@@ -473,27 +473,22 @@ def event_rows(events):
 
 
 @numba.njit(cache=True)
-def observe_first(t, p, s, last_links):
-    """:func:`observe` of step 0; returns the links, the event rows and whether every run stopped."""
-    events = List.empty_list(EVENT)
-    last_links, rel = observe(t, p, s, 0, last_links, events)
-    ints, times = event_rows(events)
-    return last_links, ints, times, not s.running.any()
-
-
-@numba.njit(cache=True)
 def run_steps(t, p, s, first, stop, last_links, u, z, flight):
     """Steps ``first … stop − 1`` (choose, move, observe of the next step) until every run
-    has stopped; ``u (N, m)``, ``z (N, m, 3)``, ``flight (N, m)`` hold the draws of steps
-    ``first …`` in their columns. Returns the steps taken, the links, the event rows, and
-    the vertices ``(m + 1, N)`` and run-0 clock ``(m + 1,)`` after each step taken."""
+    has stopped, after :func:`observe` of step 0 when ``first`` is 0; ``u (N, m)``,
+    ``z (N, m, 3)``, ``flight (N, m)`` hold the draws of steps ``first …`` in their
+    columns. Returns the steps taken, the links, the event rows, and the vertices
+    ``(m + 1, N)`` and run-0 clock ``(m + 1,)`` after each step taken."""
     events = List.empty_list(EVENT)
     m = stop - first
     vertices = np.empty((m + 1 if p.record else 0, len(s.pos)), np.int64)
     clock = np.empty(m + 1 if p.record else 0)
     k = first
-    rel = current_relation(t, p, s)
-    while k < stop:
+    if first == 0:
+        last_links, rel = observe(t, p, s, 0, last_links, events)
+    else:
+        rel = current_relation(t, p, s)
+    while k < stop and s.running.any():
         c = k - first
         choice, rounds = choose(t, p, s, rel, u[:, c], z[:, c], flight[:, c])
         move(t, p, s, k, choice, rounds, events)
@@ -502,7 +497,5 @@ def run_steps(t, p, s, first, stop, last_links, u, z, flight):
             clock[c + 1] = s.time[0]
         last_links, rel = observe(t, p, s, k + 1, last_links, events)
         k += 1
-        if not s.running.any():
-            break
     ints, times = event_rows(events)
     return k - first, last_links, ints, times, vertices, clock

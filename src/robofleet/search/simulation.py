@@ -57,7 +57,7 @@ from .knowledge import RobotMaps
 from .levy_flight import LevyFlightPolicy
 from .metrics import RunRecord, run_results
 from .loop_kernels import (EVENT_KINDS, FAILURE, FAILURE_DETECTED, LEVY, OBSTACLE_COLLISION, RANDOM_UNVISITED, SEQUENTIAL, STOP,
-                           TARGET_FOUND, LoopParameters, LoopState, LoopTables, observe_first, run_steps)
+                           TARGET_FOUND, LoopParameters, LoopState, LoopTables, run_steps)
 from .policy import RobotStreams
 from .random_baseline import RandomUnvisitedPolicy
 from .sensing import SensingTables, build_sensing
@@ -161,10 +161,10 @@ class SearchBatch:
         self.executed, self.finished = 0, False
 
     def run(self) -> list[SearchOutcome]:
-        """Observe step 0, then run the steps through the recorder until every run stopped."""
-        self.last_links, events, times, self.finished = observe_first(self.tables, self.parameters, self.state, self.last_links)
-        self.record_events(events, times)
-        if not self.finished:
+        """Observe step 0 and run the first block of steps, then the others through the
+        recorder until every run stopped (none when step 0's observation ends them all)."""
+        self.run_block(0)
+        if self.executed:
             self.rec.run(self.step)
         return [self.outcome(r) for r in range(self.R)]
 
@@ -188,7 +188,8 @@ class SearchBatch:
         if self.record:
             self.record_rows(k, vertices[1:taken + 1], clock[1:taken + 1])
             self.record_events(events, times)
-        self.rec["step_seconds"][k:k + taken] = (time.perf_counter() - t0) / taken
+        if taken:
+            self.rec["step_seconds"][k:k + taken] = (time.perf_counter() - t0) / taken
 
     def draws(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """The next block of every robot's draws: uniforms ``(N, m)``, normals ``(N, m, 3)``
