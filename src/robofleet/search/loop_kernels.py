@@ -473,12 +473,12 @@ def event_rows(events):
 
 
 @numba.njit(cache=True)
-def run_steps(t, p, s, first, stop, last_links, u, z, flight):
+def run_steps(t, p, s, first, stop, last_links, u, z, flight, column):
     """Steps ``first … stop − 1`` (choose, move, observe of the next step) until every run
     has stopped, after :func:`observe` of step 0 when ``first`` is 0; ``u (N, m)``,
     ``z (N, m, 3)``, ``flight (N, m)`` hold the draws of steps ``first …`` in their
-    columns. Returns the steps taken, the links, the event rows, and the vertices
-    ``(m + 1, N)`` and run-0 clock ``(m + 1,)`` after each step taken."""
+    columns from ``column`` on. Returns the steps taken, the links, the event rows, and
+    the vertices ``(stop − first + 1, N)`` and run-0 clock after each step taken."""
     events = List.empty_list(EVENT)
     m = stop - first
     vertices = np.empty((m + 1 if p.record else 0, len(s.pos)), np.int64)
@@ -490,7 +490,7 @@ def run_steps(t, p, s, first, stop, last_links, u, z, flight):
         rel = current_relation(t, p, s)
     while k < stop and s.running.any():
         c = k - first
-        choice, rounds = choose(t, p, s, rel, u[:, c], z[:, c], flight[:, c])
+        choice, rounds = choose(t, p, s, rel, u[:, column + c], z[:, column + c], flight[:, column + c])
         move(t, p, s, k, choice, rounds, events)
         if p.record:
             vertices[c + 1] = s.pos

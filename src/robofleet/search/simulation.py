@@ -159,6 +159,7 @@ class SearchBatch:
         self.state = initial_state(problems, self.maps, self.policy)
         self.last_links = self.maps.last_links
         self.executed, self.finished = 0, False
+        self.block, self.drawn_from, self.drawn_until = None, 0, 0
 
     def run(self) -> list[SearchOutcome]:
         """Observe step 0 and run the first block of steps, then the others through the
@@ -175,15 +176,18 @@ class SearchBatch:
             self.run_block(k)
         return self.finished and k == self.executed - 1
 
-    def run_block(self, k: int) -> None:
-        """Steps ``k …`` up to the end of the robots' current block of draws (or of the step
-        budget) in one compiled call (:func:`.loop_kernels.run_steps`), its rows and events
-        recorded; the steps share the call's wall time equally in ``step_seconds``."""
+    def run_block(self, k: int, stop: int | None = None) -> None:
+        """Steps ``k …`` up to ``stop``, the end of the robots' current block of draws or of
+        the step budget, in one compiled call (:func:`.loop_kernels.run_steps`), its rows and
+        events recorded; the steps share the call's wall time equally in ``step_seconds``.
+        Steps are taken in order: ``k`` is the first step not run yet."""
         t0 = time.perf_counter()
-        u, z, flight = self.draws()
-        stop = min(k + u.shape[1], self.p.max_steps)
+        if k >= self.drawn_until:  # the next block of draws, for steps k, k + 1, …
+            self.block, self.drawn_from, self.drawn_until = self.draws(), k, k + self.streams.chunk
+        u, z, flight = self.block
+        stop = min(self.drawn_until, self.p.max_steps, self.p.max_steps if stop is None else stop)
         taken, self.last_links, events, times, vertices, clock = run_steps(self.tables, self.parameters, self.state, k, stop,
-                                                                           self.last_links, u, z, flight)
+                                                                           self.last_links, u, z, flight, k - self.drawn_from)
         self.executed, self.finished = k + taken, not self.state.running.any()
         if self.record:
             self.record_rows(k, vertices[1:taken + 1], clock[1:taken + 1])
