@@ -6,14 +6,15 @@ phases spends most of its time in the calls. :func:`run_steps` runs the loop of
 :class:`~robofleet.search.simulation.SearchBatch` — choose (steps 4–5), move (step 6),
 observe (failures, steps 1–3, 7 and 8) — for a block of steps without leaving compiled
 code, calling the per-phase kernels of :mod:`.step_kernels`, :mod:`.knowledge` and
-:mod:`.neighbours`, with exactly the arithmetic of the phases' definitions:
+:mod:`.neighbours`:
 
-* the random draws come from the robots' own streams, drawn by
-  :class:`~robofleet.search.policy.RobotStreams` in the blocks it always drew them in
-  (a block of :attr:`~robofleet.search.policy.RobotStreams.chunk` steps per call);
-* the values numpy computes with its own vectorized routines (``arctan2`` of an edge's
-  direction, the power of Mantegna's step length) are looked up in tables numpy made, so
-  every number equals the one the vectorized step computes;
+* the random draws come from the robots' own streams
+  (:class:`~robofleet.search.policy.RobotStreams`), drawn a block of
+  :attr:`~robofleet.search.policy.RobotStreams.chunk` steps at a time (LFP's normals
+  before its uniforms); a call runs steps of one block, and step ``k`` reads column
+  ``k mod chunk``, so the draws of a step do not depend on how steps are grouped into calls;
+* the numbers numpy computes with its own vectorized routines (``arctan2`` of an edge's
+  direction, the power in Mantegna's step length) are looked up in tables numpy made;
 * events are returned as rows ``(step, kind, a, b, c, time)`` (:data:`EVENT_KINDS`) in
   the order the phases emit them, and the recorded rows (vertices and the clock after
   each step) as arrays.
@@ -246,8 +247,16 @@ def exchange_maps(s, rel, last_links):
 
 @numba.njit(cache=True)
 def stop_received(p, s, own):
-    """Step 8: the active robots that the stop broadcast of the robots ``own`` ends
-    (:meth:`.simulation.SearchBatch.stop_received`)."""
+    """Step 8: the active robots that a stop broadcast by the robots ``own`` ends.
+
+    Situation 1: rule (3) speaks of the targets, which every robot of the run knows
+    alike, so the stop ends the search of every robot of the run (the paper's step 8).
+    Situation 2: the stop carries the stopper's map, closed under travellable edges
+    (rule (4)); it ends the search of a receiver whose vertex that map holds as sensed
+    and not blocked: the receiver's whole accessible component is then visited. In a
+    connected grid that is every robot (the paper's step 8); a robot trapped in a
+    pocket, whose map covers only the pocket, no longer ends the others' search.
+    """
     N, n = len(own), p.n
     heard = np.zeros(N, np.bool_)
     for r in range(N // n):
@@ -368,7 +377,7 @@ def choose(t, p, s, rel, u, z, flight):
 @numba.njit(cache=True)
 def bump_obstacles(t, p, s, step, choice, events):
     """Robots that take an edge blocked by an unsensed obstacle touch it and stay; they
-    learn the vertex blocked (:meth:`.simulation.SearchBatch.bump`)."""
+    learn the vertex blocked; each touch is counted and recorded as an event."""
     N = len(choice)
     bumped = np.zeros(N, np.bool_)
     for i in range(N):

@@ -27,11 +27,12 @@ can advance in lockstep as one batch: robot ``g`` is robot ``g % n`` of run ``g 
 robots of different runs never sense, hear or collide with each other, and every robot
 draws from its own stream — so a run's result does not depend on its batch.
 
-The loop runs through :class:`~robofleet.core.recorder.Recorder`: steps 1–3, 7 and 8 of
-step 0 are observed first (:meth:`SearchBatch.observe`); then recorder step ``k`` is
-steps 4–6 of step ``k`` followed by steps 1–3, 7, 8 of step ``k + 1``
-(:meth:`SearchBatch.advance`), until every run has stopped (early stop) or ``max_steps``
-moves are spent. :func:`simulate` is the family's entry point (spec → trace, seed rule
+The loop is compiled (:mod:`.loop_kernels`, one phase per function there): steps 1–3, 7
+and 8 of step 0 are observed first; then step ``k`` is steps 4–6 of step ``k`` followed by
+steps 1–3, 7, 8 of step ``k + 1``, until every run has stopped (early stop) or
+``max_steps`` moves are spent. :meth:`SearchBatch.run_block` runs a block of steps per
+call — the steps of one block of the robots' random draws — and records it through
+:class:`~robofleet.core.recorder.Recorder`. :func:`simulate` is the family's entry point (spec → trace, seed rule
 of :mod:`robofleet.core.rng`); :func:`run_search` and :func:`run_search_batch` run resolved
 :class:`SearchProblem` s without recording arrays.
 """
