@@ -263,7 +263,7 @@ def loop_parameters(p: SearchProblem, algorithm: Algorithm, policy, record: bool
     rc2, rso2 = (p.r_c + EPS) ** 2, (p.r_so + EPS) ** 2
     reach2 = max(rc2, rso2)
     cell = max(float(np.sqrt(reach2)) * (1 + 1e-9), 1e-12)  # cells no narrower than the range, rounding included
-    translate = float(timing.translation_time(a))
+    translate, penalty = move_durations(timing, a)
     if algorithm is Algorithm.LFP:
         code, repulsion = LEVY, float(policy.repulsion)
     elif algorithm is Algorithm.RU:
@@ -274,10 +274,16 @@ def loop_parameters(p: SearchProblem, algorithm: Algorithm, policy, record: bool
         n=p.n_robots, situation=p.situation, policy=code, repulsion=repulsion, communicates=policy.communicates,
         exact=p.sensing.exact, fixed_rotation=timing.rotation_mode == "fixed", has_failures=has_failures, record=record,
         rc2=rc2, rso2=rso2, cell=cell, reach2=reach2, decision_seconds=float(timing.decision_seconds),
-        penalty=float(timing.collision_penalty_moves * timing.move_time(a)), step_seconds=timing.rotation_seconds + translate,
+        penalty=penalty, step_seconds=timing.rotation_seconds + translate,
         translate_seconds=translate, omega_max=float(timing.omega_max), alpha_max=float(timing.alpha_max),
         turn_threshold=timing.omega_max**2 / timing.alpha_max, turn_cruise=timing.omega_max / timing.alpha_max,
         turn_sigma=float(p.levy.turn_sigma), n_vertices=p.grid.n_vertices)
+
+
+@lru_cache(maxsize=64)
+def move_durations(timing: MotionTiming, a: float) -> tuple[float, float]:
+    """Seconds of one edge's translation and of one collision's penalty (:mod:`.timing`)."""
+    return float(timing.translation_time(a)), float(timing.collision_penalty_moves * timing.move_time(a))
 
 
 def initial_state(problems: list[SearchProblem], maps: RobotMaps, policy) -> LoopState:
