@@ -86,18 +86,35 @@ def measure_point(f: float, algorithm: str, n_robots: int, steps: int, warmup: i
     problem = build_problem(spec, seed)
     t2 = time.perf_counter()
     batch = SearchBatch([problem], algorithm, [seed])
-    done = batch.observe(0)
-    k = 0
-    while k < warmup and not done:
-        done = batch.advance(k)
-        k += 1
+    advance = steps_runner(batch)
+    k, done = advance(0, warmup)
     start, first = time.perf_counter(), k
-    while k < warmup + steps and not done:
-        done = batch.advance(k)
-        k += 1
+    k, done = advance(k, warmup + steps)
     seconds = time.perf_counter() - start
     return {"vertices": problem.grid.n_vertices, "spec_s": t1 - t0, "problem_s": t2 - t1,
             "steps": k - first, "step_ms": 1e3 * seconds / max(k - first, 1), "done": bool(done)}
+
+
+def steps_runner(batch):
+    """``advance(k, stop) -> (k', done)``: the batch's steps from ``k`` (observing step 0
+    first) until ``stop`` or until every run stopped — compiled blocks
+    (``SearchBatch.run_block``), or the step-by-step loop of a tree without them."""
+    if hasattr(batch, "run_block"):
+        def advance(k: int, stop: int) -> tuple[int, bool]:
+            while k < stop and not batch.finished:
+                batch.run_block(k, stop)
+                k = batch.executed
+            return k, batch.finished
+        return advance
+
+    state = {"done": batch.observe(0)}
+
+    def advance_by_step(k: int, stop: int) -> tuple[int, bool]:
+        while k < stop and not state["done"]:
+            state["done"] = batch.advance(k)
+            k += 1
+        return k, state["done"]
+    return advance_by_step
 
 
 def worker(args: argparse.Namespace) -> None:

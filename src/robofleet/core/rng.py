@@ -15,14 +15,19 @@ a ``numpy.random.Generator`` or ``None``) and pass it through :func:`as_generato
 from __future__ import annotations
 
 import hashlib
+import sys
 from typing import Union
 
 import numpy as np
+from numpy.random.bit_generator import ISpawnableSeedSequence
 
 from .errors import ConfigError, short_repr
 
 RngLike = Union[int, np.random.SeedSequence, np.random.Generator, None]
 MAX_SEED = 2**63 - 1
+COMPILED_SPAWN = 10_000
+"""From this many seeds on, :func:`spawn_seeds` hashes them in compiled code even in a
+process that has not loaded numba yet."""
 
 
 def resolve_seed(seed: object = None, where: str = "seed") -> int:
@@ -70,14 +75,20 @@ def as_generator(rng: RngLike = None) -> np.random.Generator:
 def spawn_seeds(root: int, n: int) -> list[int]:
     """``n`` independent 63-bit integer seeds derived from ``root``.
 
-    Uses ``SeedSequence(root).spawn(n)``; the integers are stored with every result row
-    so that a single run can be replayed with ``seed=row["seed"]``.
+    Seed ``i`` is the first 64-bit state word of the ``i``-th child of
+    ``SeedSequence(root).spawn(n)``, shifted right by one bit (computed by
+    :mod:`robofleet.core.seed_sequence`, the same words); the integers are stored with
+    every result row so that a single run can be replayed with ``seed=row["seed"]``.
     """
     root = resolve_seed(root, "root")
     if isinstance(n, (bool, np.bool_)) or not isinstance(n, (int, np.integer)) or n < 0:
         raise ConfigError(f"n: expected a non-negative integer count of seeds, received {short_repr(n)}")
-    children = np.random.SeedSequence(root).spawn(int(n))
-    return [int(c.generate_state(2, dtype=np.uint64)[0] >> np.uint64(1)) for c in children]
+    if n < COMPILED_SPAWN and "numba" not in sys.modules:  # a few seeds: not worth loading numba
+        children = np.random.SeedSequence(root).spawn(int(n))
+        return [int(c.generate_state(2, dtype=np.uint64)[0] >> np.uint64(1)) for c in children]
+    from .seed_sequence import assembled_entropy, spawned_first_words  # compiled: loaded on first use
+
+    return (spawned_first_words(assembled_entropy([root]), int(n)) >> np.uint64(1)).tolist()
 
 
 def keyed_generator(seed: int, *keys: int | str) -> np.random.Generator:
@@ -85,7 +96,9 @@ def keyed_generator(seed: int, *keys: int | str) -> np.random.Generator:
 
     Used where several methods must see *identical* random events, e.g. one stream per
     (seed, robot, step) for disturbances: the draw depends only on the key, never on how
-    many draws other robots or methods made before.
+    many draws other robots or methods made before. The stream is that of
+    ``numpy.random.default_rng(SeedSequence([seed, *words]))``, a string key's word being
+    its 64-bit BLAKE2b hash (the state hashed by :class:`HashedSeedSequence`).
     """
     words = [resolve_seed(seed, "seed")]
     for key in keys:
@@ -95,4 +108,34 @@ def keyed_generator(seed: int, *keys: int | str) -> np.random.Generator:
             words.append(int.from_bytes(hashlib.blake2b(key.encode(), digest_size=8).digest(), "little"))
         else:
             words.append(int(key) & (2**63 - 1))
-    return np.random.default_rng(np.random.SeedSequence(words))
+    return np.random.Generator(np.random.PCG64(HashedSeedSequence(words)))
+
+
+class HashedSeedSequence(ISpawnableSeedSequence):
+    """``numpy.random.SeedSequence(entropy)`` whose states are hashed by compiled code
+    (:mod:`robofleet.core.seed_sequence`: the same words, a microsecond instead of tens);
+    it spawns children as ``SeedSequence(entropy)`` does."""
+
+    def __init__(self, entropy: list[int]):
+        self.entropy = entropy
+        self._sequence: np.random.SeedSequence | None = None
+
+    def generate_state(self, n_words: int, dtype: type = np.uint32) -> np.ndarray:
+        """``SeedSequence(entropy).generate_state(n_words, dtype)`` (``uint32`` or ``uint64`` words);
+        numpy's own hashing until numba is loaded (a process that never simulates need not load it)."""
+        if "numba" not in sys.modules:
+            return np.random.SeedSequence(self.entropy).generate_state(n_words, dtype)
+        from .seed_sequence import assembled_entropy, state_of  # compiled: loaded on first use
+
+        if np.dtype(dtype) == np.uint64:
+            return state_of(assembled_entropy(self.entropy), int(n_words))
+        if np.dtype(dtype) != np.uint32:
+            raise ConfigError(f"dtype: expected numpy.uint32 or numpy.uint64, received {short_repr(dtype)}")
+        words = state_of(assembled_entropy(self.entropy), -(-int(n_words) // 2))
+        return words.astype("<u8").view("<u4")[: int(n_words)].astype(np.uint32)
+
+    def spawn(self, n_children: int) -> list[np.random.SeedSequence]:
+        """``SeedSequence(entropy).spawn(n_children)`` (children numbered on from earlier spawns)."""
+        if self._sequence is None:
+            self._sequence = np.random.SeedSequence(self.entropy)
+        return self._sequence.spawn(n_children)

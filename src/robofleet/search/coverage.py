@@ -8,6 +8,7 @@ the detected share of a run is one sparse matrix–vector product.
 
 from __future__ import annotations
 
+import numba
 import numpy as np
 import shapely
 from scipy import sparse
@@ -42,15 +43,49 @@ class CoverageProbe:
         cols = np.concatenate([np.full(len(p), v) for v, p in enumerate(pairs)]) if len(pairs) else np.empty(0)
         rows = np.concatenate([np.asarray(p, dtype=np.intp) for p in pairs]) if len(pairs) else np.empty(0)
         self.incidence = sparse.csr_matrix((np.ones(len(rows)), (rows, cols)), shape=(len(self.samples), grid.n_vertices))
+        self.groups = distinct_rows(self.incidence)
 
     def detected(self, visited: np.ndarray) -> np.ndarray:
         """Boolean mask over the samples: detected from some visited vertex."""
         return (self.incidence @ np.asarray(visited, dtype=float)) > 0
 
     def detected_share(self, visited: np.ndarray) -> float:
-        """Share of ``A_d`` detected from the ``visited (V,)`` vertices."""
-        return float(self.detected(visited).mean()) if len(self.samples) else 1.0
+        """Share of ``A_d`` detected from the ``visited (V,)`` vertices: the samples whose
+        set of detecting vertices holds a visited one, counted once per distinct set
+        (:attr:`groups`) in one compiled pass."""
+        if not len(self.samples):
+            return 1.0
+        return detected_count(*self.groups, np.asarray(visited, dtype=bool)) / len(self.samples)
 
     def undetected(self, visited: np.ndarray) -> np.ndarray:
         """Sample points ``(m, 2)`` not detected from any visited vertex."""
         return self.samples[~self.detected(visited)]
+
+
+def distinct_rows(incidence: sparse.csr_matrix) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The distinct rows of a CSR incidence as ``(indptr, indices, count)``: each distinct set
+    of column indices once, with the number of rows holding it."""
+    counts: dict[bytes, int] = {}
+    sets: dict[bytes, np.ndarray] = {}
+    indptr, indices = incidence.indptr, incidence.indices.astype(np.int64)
+    for row in range(incidence.shape[0]):
+        columns = np.sort(indices[indptr[row]:indptr[row + 1]])
+        key = columns.tobytes()
+        counts[key] = counts.get(key, 0) + 1
+        sets.setdefault(key, columns)
+    members = list(sets.values())
+    starts = np.concatenate([[0], np.cumsum([len(m) for m in members])]).astype(np.int64)
+    flat = np.concatenate(members).astype(np.int64) if members else np.zeros(0, np.int64)
+    return starts, flat, np.array([counts[k] for k in sets], dtype=np.int64)
+
+
+@numba.njit(cache=True)
+def detected_count(indptr, indices, count, visited):
+    """Rows (weighted by ``count``) of a CSR incidence holding at least one ``visited`` vertex."""
+    total = 0
+    for row in range(len(indptr) - 1):
+        for e in range(indptr[row], indptr[row + 1]):
+            if visited[indices[e]]:
+                total += count[row]
+                break
+    return total

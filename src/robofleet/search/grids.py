@@ -79,6 +79,18 @@ class Grid:
         return np.where((self.neighbours >= 0)[:, :, None], vec / self.a, 0.0)
 
     @cached_property
+    def edge_unit_headings(self) -> np.ndarray:
+        """``(V, k)`` heading (``arctan2``) of each edge's unit vector (an LFP robot sliding along it)."""
+        units = self.edge_units
+        return np.arctan2(units[:, :, 1], units[:, :, 0])
+
+    @cached_property
+    def edge_headings(self) -> np.ndarray:
+        """``(V, k)`` heading (``arctan2``) of each edge from its vertex (a robot turning to it)."""
+        vec = self.points[self.candidates] - self.points[:, None, :]
+        return np.arctan2(vec[:, :, 1], vec[:, :, 0])
+
+    @cached_property
     def candidates(self) -> np.ndarray:
         """``neighbours`` with ``-1`` padding replaced by vertex 0 (masked by ``edge_ok`` / sensing)."""
         return np.maximum(self.neighbours, 0)
@@ -97,6 +109,11 @@ class Grid:
         graph = sparse.coo_matrix((np.ones(len(src)), (src, self.neighbours[src, slot])), shape=(self.n_vertices,) * 2)
         return csgraph.connected_components(graph, directed=False)[1]
 
+    @cached_property
+    def n_components(self) -> int:
+        """Number of connected components of the graph of travellable edges."""
+        return int(self.components.max(initial=-1)) + 1
+
     @property
     def n_vertices(self) -> int:
         return len(self.points)
@@ -113,7 +130,9 @@ class Grid:
     def reachable_from(self, starts: np.ndarray) -> np.ndarray:
         """Boolean mask of vertices reachable from ``starts`` along travellable edges."""
         labels = self.components
-        return np.isin(labels, labels[np.asarray(starts, dtype=np.intp)])
+        holds_start = np.zeros(self.n_components, dtype=bool)
+        holds_start[labels[np.asarray(starts, dtype=np.intp)]] = True
+        return holds_start[labels]
 
     def border_vertices(self) -> np.ndarray:
         """Accessible vertices of the outermost accessible ring along the outer border.

@@ -53,11 +53,16 @@ class LevyFlightPolicy:
         self.remaining = np.zeros(n_robots, dtype=np.intp)
         self.started = False
 
+    def flight_lengths(self, z: np.ndarray) -> np.ndarray:
+        """Flight lengths ``L = ⌈|s|⌉`` clipped to ``[1, max_flight]`` (Mantegna's ``s``) of the
+        normal draws ``z (..., 3)`` (``z₀``, ``z₁``), as edge counts of ``z``'s shape but the last."""
+        step = self.sigma_u * z[..., 0] / np.maximum(np.abs(z[..., 1]), 1e-12) ** (1 / self.beta)
+        return np.minimum(np.maximum(np.ceil(np.abs(step)), 1), self.max_flight).astype(np.intp)
+
     def new_flights(self, robots: np.ndarray, z: np.ndarray, u: np.ndarray, first: bool) -> None:
         """Draw length and turn for ``robots``; a robot's first flight takes a uniform heading."""
         zr = z[robots]
-        step = self.sigma_u * zr[:, 0] / np.maximum(np.abs(zr[:, 1]), 1e-12) ** (1 / self.beta)
-        self.remaining[robots] = np.minimum(np.maximum(np.ceil(np.abs(step)), 1), self.max_flight)
+        self.remaining[robots] = self.flight_lengths(zr)
         if first:
             self.heading[robots] = 2 * np.pi * u[robots]
         else:

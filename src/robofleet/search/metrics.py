@@ -7,7 +7,7 @@ it is the family's ``results`` table (:mod:`~robofleet.search.family`), so every
 ``completed`` is the stop rules' verdict: every working robot stopped, by its own rule
 (3)/(4) or by a stop broadcast (step 8) that ends its search — in situation 2 only one
 whose map covers the receiver's vertex, so a robot trapped in a pocket cut off by
-obstacles never ends the others' search (:meth:`.simulation.SearchBatch.stop_received`).
+obstacles never ends the others' search (:func:`.loop_kernels.stop_received`).
 Without failures, a completed situation-2 run has therefore visited every accessible
 vertex reachable from the starts; a failed robot can seal vertices off (their runs
 complete with ``visited_share`` below 1 and no success).

@@ -32,18 +32,26 @@ class RobotStreams:
         self._normal = np.empty((n_robots, 0, 3))
         self._u = self._z = 0
 
+    def uniform_block(self) -> np.ndarray:
+        """The next ``chunk`` ``U[0, 1)`` draws of every robot, ``(n, chunk)``."""
+        return np.stack([g.random(self.chunk) for g in self.generators]) if self.generators else np.empty((0, self.chunk))
+
+    def normal_block(self) -> np.ndarray:
+        """The next ``chunk`` triples of standard normal draws of every robot, ``(n, chunk, 3)``."""
+        return np.stack([g.standard_normal((self.chunk, 3)) for g in self.generators]) if self.generators else np.empty((0, self.chunk, 3))
+
     def uniforms(self) -> np.ndarray:
-        """Next ``U[0, 1)`` draw of every robot, ``(n,)``."""
+        """Next ``U[0, 1)`` draw of every robot, ``(n,)`` (a column of :meth:`uniform_block`)."""
         if self._u >= self._uniform.shape[1]:
-            self._uniform = np.stack([g.random(self.chunk) for g in self.generators]) if self.generators else np.empty((0, self.chunk))
+            self._uniform = self.uniform_block()
             self._u = 0
         self._u += 1
         return self._uniform[:, self._u - 1]
 
     def normals(self) -> np.ndarray:
-        """Next three standard normal draws of every robot, ``(n, 3)``."""
+        """Next three standard normal draws of every robot, ``(n, 3)`` (a row of :meth:`normal_block`)."""
         if self._z >= self._normal.shape[1]:
-            self._normal = np.stack([g.standard_normal((self.chunk, 3)) for g in self.generators]) if self.generators else np.empty((0, self.chunk, 3))
+            self._normal = self.normal_block()
             self._z = 0
         self._z += 1
         return self._normal[:, self._z - 1]

@@ -27,17 +27,19 @@ can advance in lockstep as one batch: robot ``g`` is robot ``g % n`` of run ``g 
 robots of different runs never sense, hear or collide with each other, and every robot
 draws from its own stream — so a run's result does not depend on its batch.
 
-The loop runs through :class:`~robofleet.core.recorder.Recorder`: steps 1–3, 7 and 8 of
-step 0 are observed first (:meth:`SearchBatch.observe`); then recorder step ``k`` is
-steps 4–6 of step ``k`` followed by steps 1–3, 7, 8 of step ``k + 1``
-(:meth:`SearchBatch.advance`), until every run has stopped (early stop) or ``max_steps``
-moves are spent. :func:`simulate` is the family's entry point (spec → trace, seed rule
+The loop is compiled (:mod:`.loop_kernels`, one phase per function there): steps 1–3, 7
+and 8 of step 0 are observed first; then step ``k`` is steps 4–6 of step ``k`` followed by
+steps 1–3, 7, 8 of step ``k + 1``, until every run has stopped (early stop) or
+``max_steps`` moves are spent. :meth:`SearchBatch.run_block` runs a block of steps per
+call — the steps of one block of the robots' random draws — and records it through
+:class:`~robofleet.core.recorder.Recorder`. :func:`simulate` is the family's entry point (spec → trace, seed rule
 of :mod:`robofleet.core.rng`); :func:`run_search` and :func:`run_search_batch` run resolved
 :class:`SearchProblem` s without recording arrays.
 """
 
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass, field
 from functools import lru_cache
 from typing import Any
@@ -55,16 +57,13 @@ from .grids import EPS, Grid
 from .knowledge import RobotMaps
 from .levy_flight import LevyFlightPolicy
 from .metrics import RunRecord, run_results
-from .neighbours import Neighbours, collision_pairs, find_neighbours, no_neighbours
-from .policy import RobotStreams, StepContext
+from .loop_kernels import (EVENT_KINDS, FAILURE, FAILURE_DETECTED, LEVY, OBSTACLE_COLLISION, RANDOM_UNVISITED, SEQUENTIAL, STOP,
+                           TARGET_FOUND, LoopParameters, LoopState, LoopTables, run_steps)
+from .policy import RobotStreams
 from .random_baseline import RandomUnvisitedPolicy
 from .sensing import SensingTables, build_sensing
 from .spec import LABELS, Algorithm, Spec, border_vertices
-from .step_kernels import advance_clocks, may_collide, sense_and_record
-from .timing import MotionTiming, heading_change
-
-SMALL_TEAM = 32
-"""Teams up to this size check a move for collisions pair by pair (O(n²) per run)."""
+from .timing import MotionTiming
 
 
 @dataclass(frozen=True)
@@ -126,6 +125,9 @@ def make_policy(problem: SearchProblem, algorithm: Algorithm,
 class SearchBatch:
     """State of ``R`` lockstep runs: true positions (observer) and per-robot knowledge (robots).
 
+    The loop itself is compiled (:mod:`.loop_kernels`): :meth:`run` observes step 0, then
+    hands the recorder blocks of steps, each running in one compiled call
+    (:meth:`run_block`) on the random draws of one block of the robots' streams.
     ``recorder`` (single runs only) receives the positions, vertices and clock of every
     step and the events; without one the batch still steps through a bare
     :class:`~robofleet.core.recorder.Recorder` (the loop and its early stop).
@@ -146,262 +148,158 @@ class SearchBatch:
         self.p = p
         self.algorithm = Algorithm(algorithm)
         self.R, self.n = len(problems), p.n_robots
-        grid = p.grid
         N = self.R * self.n
-        self.maps = RobotMaps(N, grid.n_vertices, len(p.targets))
+        self.maps = RobotMaps(N, p.grid.n_vertices, len(p.targets))
         self.streams = RobotStreams(list(seeds), self.n)
         self.policy = make_policy(p, self.algorithm, N)
-        self.pos = np.concatenate([q.starts for q in problems]).astype(np.intp)
-        self.failures = np.concatenate([q.failures for q in problems])
         self.starts = [q.starts for q in problems]
-        self.heading = np.zeros(N)  # read by trapezoidal rotation only
-        self.alive = np.ones(N, dtype=bool)
-        self.running = np.ones(self.R, dtype=bool)
-        self.visited = np.zeros((self.R, grid.n_vertices), dtype=bool)
-        self.time = np.zeros(self.R)
-        self.steps = np.full(self.R, p.max_steps)
-        self.stopped = np.zeros(N, dtype=bool)
-        self.completed = np.zeros(self.R, dtype=bool)
-        self.collisions = np.zeros(self.R, dtype=np.intp)
-        self.obstacle_collisions = np.zeros(self.R, dtype=np.intp)
-        self.rounds = np.zeros(self.R, dtype=np.intp)
-        self.no_collisions = np.zeros(self.R, dtype=np.intp)
-        self.no_collisions.flags.writeable = False
-        timing = p.timing
-        self.rc2 = (p.r_c + EPS) ** 2
-        self.rso2 = (p.r_so + EPS) ** 2
-        self.translate_seconds = float(timing.translation_time(grid.a))
-        self.fixed_rotation = timing.rotation_mode == "fixed"
-        self.step_seconds = timing.rotation_seconds + self.translate_seconds
-        self.penalty = timing.collision_penalty_moves * timing.move_time(grid.a)
         self.record = recorder is not None
         self.rec = recorder if recorder is not None else Recorder(p.max_steps, N)
-        self.run_of = np.arange(N) // self.n
-        self.no_neighbours = no_neighbours(N, self.n)
-        self.has_failures = bool((self.failures >= 0).any())
-        self.active = self.alive.copy()
-        self.neighbours = self.no_neighbours
-        self.context = StepContext(grid, p.sensing, self.maps, self.streams, self.pos, self.heading, self.active,
-                                   neighbours=self.neighbours)
+        self.tables = loop_tables(p, np.concatenate([q.failures for q in problems]).astype(np.int64))
+        self.parameters = loop_parameters(p, self.algorithm, self.policy, self.record, bool((self.tables.failures >= 0).any()))
+        self.state = initial_state(problems, self.maps, self.policy)
+        self.last_links = self.maps.last_links
+        self.executed, self.finished = 0, False
+        self.block, self.drawn_from, self.drawn_until = None, 0, 0
 
-    def event(self, step: int, kind: str, **info: Any) -> None:
-        """Record an event (single recorded runs), stamped with the run's clock."""
-        if self.record:
-            self.rec.event(step, kind, time=float(self.time[0]), **info)
-
-    # -- steps 1-3 ----------------------------------------------------------------------
-    def sense(self, step: int, live: np.ndarray) -> None:
-        """Steps 1–2 at each live robot's own vertex (:func:`.step_kernels.sense_and_record`):
-        target sensing, a finder's broadcast to every live robot of its run, and obstacle
-        sensing recorded in each robot's own map (sensed-inaccessible neighbours blocked,
-        and visited in situation 2)."""
-        p, maps = self.p, self.maps
-        finder = sense_and_record(live, self.pos, self.n, self.visited, p.sensing.target_visible, maps.targets,
-                                  p.grid.candidates, p.sensing.edge_sensed_ok, p.sensing.sensed_inaccessible,
-                                  maps.layers, maps.touched, maps.dirty, maps.unchecked, p.situation == 2)
-        if self.record and finder.max(initial=-1) >= 0:
-            for t in np.flatnonzero(finder >= 0):
-                self.event(step, "target_found", robot=int(finder[t]), target=int(t))
-
-    def detect_failures(self, step: int, table: Neighbours, near: np.ndarray) -> None:
-        """Step 3 failure information: live robots near a silent robot block its vertex.
-
-        ``near (L,)``: the entries of ``table`` within ``r_c`` or ``r_so``.
-        """
-        owner = table.owner
-        seen = near & self.alive[owner] & ~self.alive[table.peer]
-        if not seen.any():
-            return
-        watchers, silent = owner[seen], table.peer[seen]
-        if self.record:
-            known = self.maps.test(2, watchers, self.pos[silent][:, None])[:, 0]
-            for w, s in zip(watchers[~known], silent[~known]):
-                self.event(step, "failure_detected", robot=int(w), failed=int(s))
-        self.maps.set(2, watchers, self.pos[silent])
-        if self.p.situation == 2:
-            self.maps.set(0, watchers, self.pos[silent])
-
-    def stop_reached(self, active: np.ndarray) -> np.ndarray:
-        """Rules (3)/(4) per robot, on its own map (only active robots can stop)."""
-        if self.p.situation == 1:
-            done = self.maps.targets.all(axis=1)
-        else:
-            done = self.maps.frontier_empty()
-        return done & active
-
-    def stop_received(self, own: np.ndarray, active: np.ndarray) -> np.ndarray:
-        """Step 8: the active robots that a stop broadcast by the robots ``own`` ends.
-
-        Situation 1: rule (3) speaks of the targets, which every robot of the run knows
-        alike, so the stop ends the search of every robot of the run (the paper's step 8).
-        Situation 2: the stop carries the stopper's map, closed under travellable edges
-        (rule (4)); it ends the search of a receiver whose vertex that map holds as sensed
-        and not blocked: the receiver's whole accessible component is then visited. In a
-        connected grid that is every robot (the paper's step 8); a robot trapped in a
-        pocket, whose map covers only the pocket, no longer ends the others' search.
-        """
-        R, n = self.R, self.n
-        stoppers, receivers = own.reshape(R, n), active.reshape(R, n) & ~own.reshape(R, n)
-        if self.p.situation == 1:
-            return (receivers & stoppers.any(axis=1, keepdims=True)).ravel()
-        runs, i, j = np.nonzero(receivers[:, :, None] & stoppers[:, None, :])
-        heard = np.zeros(R * n, dtype=bool)
-        if len(runs):
-            receiver, stopper = runs * n + i, runs * n + j
-            where = self.pos[receiver][:, None]
-            covers = self.maps.test(3, stopper, where)[:, 0] & ~self.maps.test(2, stopper, where)[:, 0]
-            heard[receiver[covers]] = True
-        return heard
-
-    def stop_robots(self, step: int, active: np.ndarray) -> np.ndarray:
-        """Steps 7–8: robots whose stop rule fires, and the receivers their stop broadcast
-        ends (:meth:`stop_received`), stop for good; a run ends — completed — once every
-        working robot of it has stopped. Returns the robots still active."""
-        own = self.stop_reached(active)
-        if not own.any():
-            return active
-        heard = self.stop_received(own, active)
-        if self.record:
-            for r in np.flatnonzero(own | heard):
-                self.event(step, "stop", robot=int(r), rule="own" if own[r] else "received")
-        self.stopped |= own | heard
-        stopped, working = self.stopped.reshape(self.R, self.n), self.alive.reshape(self.R, self.n)
-        finished = self.running & stopped.any(axis=1) & ~(working & ~stopped).any(axis=1)
-        self.completed |= finished
-        self.steps[finished] = step
-        self.running &= ~finished
-        return self.alive & ~self.stopped & self.running[self.run_of]
-
-    # -- step 6 -------------------------------------------------------------------------
-    def move(self, step: int, choice: np.ndarray, rounds: np.ndarray) -> None:
-        """Step 6: bump into unsensed obstacles, count collisions, advance the clocks."""
-        p, grid = self.p, self.p.grid
-        if not p.sensing.exact:
-            choice = self.bump(step, choice)
-        per_run = self.count_collisions(step, choice)
-        if self.fixed_rotation:
-            advance_clocks(self.pos, choice, self.running, rounds, per_run, self.n, p.timing.decision_seconds,
-                           self.penalty, self.step_seconds, self.time, self.rounds)
-        else:
-            self.advance_turning_clocks(choice, rounds, per_run)
-        self.pos = choice
-        if self.record:
-            self.rec.put_state(step + 1, positions=grid.points[self.pos], vertex=self.pos[:, None], time=self.time[0])
-
-    def count_collisions(self, step: int, choice: np.ndarray) -> np.ndarray:
-        """Collisions of the move per run (observer side), each recorded as an event."""
-        per_run = self.no_collisions
-        if self.n > 1 and self.may_collide(choice):
-            pairs = collision_pairs(self.pos, choice, self.n, self.p.grid.n_vertices)
-            pairs = pairs[self.running[pairs[:, 0]]]
-            per_run = np.bincount(pairs[:, 0], minlength=self.R)
-            for r, i, j in pairs:
-                self.event(step, "collision", robots=[int(i), int(j)], vertex=int(choice[r * self.n + i]))
-        self.collisions += per_run
-        return per_run
-
-    def advance_turning_clocks(self, choice: np.ndarray, rounds: np.ndarray, per_run: np.ndarray) -> None:
-        """Trapezoidal rotation: each running run's clock advances by its choice rounds, its
-        collision penalties and its slowest robot's turn and translation."""
-        dt = self.p.timing.decision_seconds * rounds + self.penalty * per_run
-        moving = choice != self.pos
-        if moving.any():
-            dt = dt + self.turn_and_translate(moving, choice)
-        self.time += np.where(self.running, dt, 0.0)
-        self.rounds += np.where(self.running, rounds, 0)
-
-    def may_collide(self, choice: np.ndarray) -> bool:
-        """Cheap pre-check: a repeated destination in a run, or a robot moving onto an occupied
-        vertex (compiled pairwise scan for small teams, sorting for large ones)."""
-        if self.n <= SMALL_TEAM:
-            return may_collide(self.pos, choice, self.n)
-        key = (np.arange(len(choice)) // self.n) * self.p.grid.n_vertices
-        dest, here = key + choice, key + self.pos
-        ordered = np.sort(dest)
-        if (ordered[1:] == ordered[:-1]).any():
-            return True
-        return bool(np.isin(dest[choice != self.pos], here).any())
-
-    def turn_and_translate(self, moving: np.ndarray, choice: np.ndarray) -> np.ndarray:
-        """Per run: duration of its slowest robot (trapezoidal rotation to the edge, then translation)."""
-        grid, timing = self.p.grid, self.p.timing
-        vec = grid.points[choice[moving]] - grid.points[self.pos[moving]]
-        new_heading = np.arctan2(vec[:, 1], vec[:, 0])
-        turn = np.zeros(len(choice))
-        turn[moving] = timing.rotation_time(heading_change(self.heading[moving], new_heading)) + self.translate_seconds
-        self.heading[moving] = new_heading
-        return turn.reshape(self.R, self.n).max(axis=1)
-
-    def bump(self, step: int, choice: np.ndarray) -> np.ndarray:
-        """Robots that take an edge blocked by an unsensed obstacle touch it and stay (it learns the vertex blocked)."""
-        grid = self.p.grid
-        moving = choice != self.pos
-        truly_free = (grid.edge_ok[self.pos] & (grid.neighbours[self.pos] == choice[:, None])).any(axis=1)
-        bumped = moving & ~truly_free
-        if bumped.any():
-            np.add.at(self.obstacle_collisions, np.flatnonzero(bumped) // self.n, 1)
-            for r in np.flatnonzero(bumped):
-                self.event(step, "obstacle_collision", robot=int(r), vertex=int(choice[r]))
-            self.maps.set(2, np.flatnonzero(bumped), choice[bumped])
-        return np.where(bumped, self.pos, choice)
-
-    # -- the loop -----------------------------------------------------------------------
     def run(self) -> list[SearchOutcome]:
-        """Observe step 0, then :meth:`advance` through the recorder until every run stopped."""
-        if not self.observe(0):
-            self.rec.run(self.advance)
+        """Observe step 0 and run the first block of steps, then the others through the
+        recorder until every run stopped (none when step 0's observation ends them all)."""
+        self.run_block(0)
+        if self.executed:
+            self.rec.run(self.step)
         return [self.outcome(r) for r in range(self.R)]
 
-    def advance(self, k: int) -> bool:
-        """Steps 4–6 of step ``k`` (choose, move), then :meth:`observe` of step ``k + 1``;
-        ``True`` when every run has stopped."""
-        with self.rec.timed(k):
-            ctx = self.context
-            ctx.pos, ctx.heading, ctx.active, ctx.neighbours = self.pos, self.heading, self.active, self.neighbours
-            choice, rounds = self.policy.choose(ctx)
-            self.move(k, choice, rounds)
-            return self.observe(k + 1)
+    def step(self, k: int) -> bool:
+        """The recorder's step function: step ``k`` runs in the block that starts there or
+        ran already in an earlier one; ``True`` at the step after which every run has stopped."""
+        if k >= self.executed:
+            self.run_block(k)
+        return self.finished and k == self.executed - 1
 
-    def observe(self, step: int) -> bool:
-        """Failures, steps 1–3 (sensing, failure detection, map exchange) and the stop check
-        of steps 7–8 at ``step``; keeps the links and active robots for the next choice.
-        ``True`` when every run has stopped."""
-        active = self.active  # alive, not stopped, of a running run (kept by stop_robots)
-        if self.has_failures:
-            self.fail_robots(step)
-            active = self.alive & ~self.stopped & self.running[self.run_of]
-        live = np.flatnonzero(active)
-        table = self.no_neighbours
-        if self.n > 1:
-            table, near = find_neighbours(self.p.grid.points[self.pos], self.n, self.alive, self.rc2, self.rso2)
-            if self.has_failures:
-                self.detect_failures(step, table, near)
-        self.sense(step, live)
-        if self.policy.communicates and len(table.peer) and table.link.any():
-            self.maps.exchange(table.owner[table.link], table.peer[table.link])
-        self.active, self.neighbours = self.stop_robots(step, active), table
-        return not self.running.any()
+    def run_block(self, k: int, stop: int | None = None) -> None:
+        """Steps ``k …`` up to ``stop``, the end of the robots' current block of draws or of
+        the step budget, in one compiled call (:func:`.loop_kernels.run_steps`), its rows and
+        events recorded; the steps share the call's wall time equally in ``step_seconds``.
+        Steps are taken in order: ``k`` is the first step not run yet."""
+        t0 = time.perf_counter()
+        if k >= self.drawn_until:  # the next block of draws, for steps k, k + 1, …
+            self.block, self.drawn_from, self.drawn_until = self.draws(), k, k + self.streams.chunk
+        u, z, flight = self.block
+        stop = min(self.drawn_until, self.p.max_steps, self.p.max_steps if stop is None else stop)
+        taken, self.last_links, events, times, vertices, clock = run_steps(self.tables, self.parameters, self.state, k, stop,
+                                                                           self.last_links, u, z, flight, k - self.drawn_from)
+        self.executed, self.finished = k + taken, not self.state.running.any()
+        if self.record:
+            self.record_rows(k, vertices[1:taken + 1], clock[1:taken + 1])
+            self.record_events(events, times)
+        if taken:
+            self.rec["step_seconds"][k:k + taken] = (time.perf_counter() - t0) / taken
 
-    def fail_robots(self, step: int) -> None:
-        """Failure injection: a robot whose failure step is reached stops for good."""
-        failing = (self.failures == step) & self.alive
-        for r in np.flatnonzero(failing):
-            self.event(step, "failure", robot=int(r), vertex=int(self.pos[r]))
-        self.alive &= ~failing
+    def draws(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The next block of every robot's draws: uniforms ``(N, m)``, normals ``(N, m, 3)``
+        and LFP flight lengths ``(N, m)`` (LFP draws the normals first, as its step did)."""
+        if isinstance(self.policy, LevyFlightPolicy):
+            z = self.streams.normal_block()
+            return self.streams.uniform_block(), z, self.policy.flight_lengths(z)
+        u = self.streams.uniform_block()
+        return u, np.zeros((len(u), u.shape[1], 3)), np.zeros(u.shape, dtype=np.intp)
+
+    def record_rows(self, k: int, vertices: np.ndarray, clock: np.ndarray) -> None:
+        """The states after steps ``k, k + 1, …``: positions, vertices and the run's clock."""
+        rows = slice(k + 1, k + 1 + len(vertices))
+        self.rec["positions"][rows] = self.p.grid.points[vertices]
+        self.rec["vertex"][rows] = vertices[:, :, None]
+        self.rec["time"][rows] = clock[:, None, None]
+
+    def record_events(self, events: np.ndarray, times: np.ndarray) -> None:
+        """The event rows of the compiled loop (:data:`.loop_kernels.EVENT_KINDS`) as recorder events."""
+        for (step, kind, a, b, c), clock in zip(events.tolist(), times.tolist()):
+            self.rec.event(step, EVENT_KINDS[kind], time=clock, **event_fields(kind, a, b, c))
 
     def outcome(self, r: int) -> SearchOutcome:
         """Run ``r``'s observer record turned into its results
         (:func:`metrics.run_results <robofleet.search.metrics.run_results>`)."""
-        p = self.p
+        p, s = self.p, self.state
         mine = slice(r * self.n, (r + 1) * self.n)
-        steps = int(self.steps[r])
+        steps = int(s.steps[r])
         record = RunRecord(
-            situation=p.situation, search_time=float(self.time[r]), completed=bool(self.completed[r]), steps=steps,
-            found=self.maps.targets[mine].any(axis=0), visited=self.visited[r].copy(),
-            reachable=p.grid.reachable_from(self.starts[r]) & p.grid.accessible, collisions=int(self.collisions[r]),
-            obstacle_collisions=int(self.obstacle_collisions[r]), rounds=int(self.rounds[r]),
-            failed_robots=int((~self.alive[mine]).sum()))
+            situation=p.situation, search_time=float(s.time[r]), completed=bool(s.completed[r]), steps=steps,
+            found=s.targets[mine].any(axis=0), visited=s.visited[r].copy(),
+            reachable=p.grid.reachable_from(self.starts[r]) & p.grid.accessible, collisions=int(s.collisions[r]),
+            obstacle_collisions=int(s.obstacle_collisions[r]), rounds=int(s.rounds[r]),
+            failed_robots=int((~s.alive[mine]).sum()))
         return SearchOutcome(run_results(record, p.grid, p.r_st), record.visited, steps)
+
+
+def event_fields(kind: int, a: int, b: int, c: int) -> dict:
+    """The fields of an event row of the compiled loop (:data:`.loop_kernels.EVENT_KINDS`)."""
+    if kind == FAILURE:
+        return {"robot": a, "vertex": b}
+    if kind == FAILURE_DETECTED:
+        return {"robot": a, "failed": b}
+    if kind == TARGET_FOUND:
+        return {"robot": a, "target": b}
+    if kind == STOP:
+        return {"robot": a, "rule": "own" if b else "received"}
+    if kind == OBSTACLE_COLLISION:
+        return {"robot": a, "vertex": b}
+    return {"robots": [a, b], "vertex": c}
+
+
+def loop_tables(p: SearchProblem, failures: np.ndarray) -> LoopTables:
+    """The read-only tables of the compiled loop for problem ``p`` and the batch's failure steps."""
+    grid, sensing = p.grid, p.sensing
+    words, masks = grid.candidate_words
+    return LoopTables(grid.points, grid.candidates, grid.neighbours, grid.edge_ok, words, masks, sensing.edge_sensed_ok,
+                      sensing.sensed_inaccessible, sensing.target_visible, grid.priority, grid.edge_units,
+                      grid.edge_unit_headings, grid.edge_headings, sensing.wall_push, failures)
+
+
+def loop_parameters(p: SearchProblem, algorithm: Algorithm, policy, record: bool, has_failures: bool) -> LoopParameters:
+    """The scalars of the compiled loop: policy, ranges (squared, with the cell size of the
+    neighbour search) and the step timing of :mod:`.timing`."""
+    timing, a = p.timing, p.grid.a
+    rc2, rso2 = (p.r_c + EPS) ** 2, (p.r_so + EPS) ** 2
+    reach2 = max(rc2, rso2)
+    cell = max(float(np.sqrt(reach2)) * (1 + 1e-9), 1e-12)  # cells no narrower than the range, rounding included
+    translate, penalty = move_durations(timing, a)
+    if algorithm is Algorithm.LFP:
+        code, repulsion = LEVY, float(policy.repulsion)
+    elif algorithm is Algorithm.RU:
+        code, repulsion = RANDOM_UNVISITED, 0.0
+    else:
+        code, repulsion = SEQUENTIAL, 1.0 if policy.repulsion else 0.0
+    return LoopParameters(
+        n=p.n_robots, situation=p.situation, policy=code, repulsion=repulsion, communicates=policy.communicates,
+        exact=p.sensing.exact, fixed_rotation=timing.rotation_mode == "fixed", has_failures=has_failures, record=record,
+        rc2=rc2, rso2=rso2, cell=cell, reach2=reach2, decision_seconds=float(timing.decision_seconds),
+        penalty=penalty, step_seconds=timing.rotation_seconds + translate,
+        translate_seconds=translate, omega_max=float(timing.omega_max), alpha_max=float(timing.alpha_max),
+        turn_threshold=timing.omega_max**2 / timing.alpha_max, turn_cruise=timing.omega_max / timing.alpha_max,
+        turn_sigma=float(p.levy.turn_sigma), n_vertices=p.grid.n_vertices)
+
+
+@lru_cache(maxsize=64)
+def move_durations(timing: MotionTiming, a: float) -> tuple[float, float]:
+    """Seconds of one edge's translation and of one collision's penalty (:mod:`.timing`)."""
+    return float(timing.translation_time(a)), float(timing.collision_penalty_moves * timing.move_time(a))
+
+
+def initial_state(problems: list[SearchProblem], maps: RobotMaps, policy) -> LoopState:
+    """The state before step 0: robots alive and active at their starts, knowing nothing."""
+    R, n, p = len(problems), problems[0].n_robots, problems[0]
+    N = R * n
+    lfp = isinstance(policy, LevyFlightPolicy)
+    return LoopState(
+        pos=np.concatenate([q.starts for q in problems]).astype(np.int64), heading=np.zeros(N), alive=np.ones(N, dtype=bool),
+        stopped=np.zeros(N, dtype=bool), active=np.ones(N, dtype=bool), running=np.ones(R, dtype=bool),
+        completed=np.zeros(R, dtype=bool), steps=np.full(R, p.max_steps, dtype=np.int64), time=np.zeros(R),
+        rounds=np.zeros(R, dtype=np.int64), collisions=np.zeros(R, dtype=np.int64), obstacle_collisions=np.zeros(R, dtype=np.int64),
+        visited=np.zeros((R, p.grid.n_vertices), dtype=bool), layers=maps.layers, targets=maps.targets, touched=maps.touched,
+        dirty=maps.dirty, unchecked=maps.unchecked, open=maps.open,
+        levy_heading=policy.heading if lfp else np.zeros(N), remaining=policy.remaining.astype(np.int64) if lfp else np.zeros(N, dtype=np.int64),
+        started=np.zeros(1, dtype=bool))
 
 
 def check_batch(problems: list[SearchProblem], algorithm: Algorithm) -> None:

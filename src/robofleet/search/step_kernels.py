@@ -11,7 +11,7 @@ compiled pass, with exactly the arithmetic of the vectorized definitions it repl
   are never communication neighbours, so the result is the round-wise one;
 * :func:`random_unvisited_choices` — RU's simultaneous rule (1) (:mod:`.random_baseline`);
 * :func:`levy_choices` — the grid-adapted LFP move (:mod:`.levy_flight`), headings given;
-* :func:`sense_and_record` — steps 1–2 (:meth:`.simulation.SearchBatch.sense`);
+* :func:`sense_and_record` — steps 1–2 (:func:`.loop_kernels.observe`);
 * :func:`may_collide` — the observer's cheap pre-check for collisions of a move;
 * :func:`advance_clocks` — the step duration of fixed rotation (:mod:`.timing`).
 """
