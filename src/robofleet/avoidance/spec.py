@@ -59,14 +59,9 @@ from ..core.workspace import Workspace
 from ..dynamics.quadrotor import QuadrotorParams
 from .buffer import MIN_DELTA, confidence_quantile, shadow_epsilon
 from .cell3d import shadow_radius
-from .mpc import MPCConfig
-from .navigation.band import BandParams
-from .navigation.detour import DetourParams
-from .navigation.params import LIVENESS_PLACES, NavigationParams
-from .navigation.right_hand import RightHandParams
-from .navigation.route import RouteParams
-from .navigation.yielding import YieldingParams
-from .orca import OrcaParams
+from .controller_params import MPCConfig, OrcaParams
+from .navigation.params import (LIVENESS_PLACES, BandParams, DetourParams, NavigationParams, RightHandParams, RouteParams,
+                                YieldingParams)
 from .placement import halves_points, longest_halves_trip
 
 Point = tuple[float, float]
