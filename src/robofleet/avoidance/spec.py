@@ -624,7 +624,7 @@ def check_layout(spec: Spec) -> None:
 
 def check_points(field: str, pts: np.ndarray, r: float, ws: Workspace) -> None:
     """Points at least ``2 r`` apart, ``r`` inside the bounds and ``r`` from every obstacle."""
-    pairs = geometry.close_pairs(pts, 2 * r)
+    pairs = geometry.close_pairs_in_cells(pts, 2 * r)
     if len(pairs):
         i, j = pairs[0]
         raise ScenarioError(f"{field}[{i}]", f"robots at least 2·radius = {2 * r} apart", f"{pts[i].tolist()} overlaps robot {j} at {pts[j].tolist()}")
@@ -651,7 +651,7 @@ def check_team_layouts(spec: Spec, teams: list[TeamSpec]) -> None:
     r = spec.robots.radius
     lo, hi = workspace_box(spec)
     for name, pts in (("starts", starts), ("goals", goals)):
-        pairs = geometry.close_pairs(pts, 2 * r)
+        pairs = geometry.close_pairs_in_cells(pts, 2 * r)
         if len(pairs):
             i, j = pairs[0]
             raise ScenarioError(f"teams.layout.{name}[{i}]", f"robots at least 2·radius = {2 * r} apart", f"{pts[i].tolist()} overlaps robot {j}")
