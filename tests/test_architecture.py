@@ -76,8 +76,6 @@ def test_validating_a_scenario_loads_no_plotting_or_table_library(scenario):
 
 
 SHIPPED_SCENARIOS = sorted(f"{path.parent.name}/{path.stem}" for path in (Path(__file__).parents[1] / "scenarios").glob("*/*.yaml"))
-GRID_BUILT_WITH_SCIPY = pytest.mark.xfail(strict=True, reason="a search scenario builds its grid to check it: scipy's k-d tree "
-                                                                "finds the grid's edges, scipy's graph components its connectivity")
 
 
 @functools.cache
@@ -91,8 +89,7 @@ def test_validating_a_shipped_scenario_loads_no_compiled_kernel_nor_plotting_or_
     assert set(loaded_by_validating(scenario)).isdisjoint({"numba", "matplotlib", "pandas", "pyarrow"})
 
 
-@pytest.mark.parametrize("scenario", [pytest.param(s, marks=GRID_BUILT_WITH_SCIPY) if s.startswith("search/") else s
-                                      for s in SHIPPED_SCENARIOS])
+@pytest.mark.parametrize("scenario", SHIPPED_SCENARIOS)
 def test_validating_a_shipped_scenario_loads_no_scipy(scenario):
     assert "scipy" not in loaded_by_validating(scenario)
 

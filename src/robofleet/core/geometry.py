@@ -96,9 +96,10 @@ def close_pairs_in_cells(points: np.ndarray, radius: float) -> np.ndarray:
     checks its starts and goals with it and loads no scipy. :func:`close_pairs` keeps the
     k-d tree, faster per step for thousands of robots.
 
-    A cell list: finite points ``(N, d)`` are binned into cubes of side ``2 · radius`` (or
-    wider, at most 2⁴⁰ cubes along an axis); a pair closer than ``radius`` differs by less
-    than half a side along every axis, so even after the rounding of the binning its cubes
+    A cell list: finite points ``(N, d)`` are binned into cubes of side ``(1 + 10⁻⁶) ·
+    radius`` (or wider: at most 2²⁰ cubes along an axis). A pair closer than ``radius``
+    differs by less than ``1 − 10⁻⁶`` sides along every axis, and binning a coordinate
+    rounds it by less than 2⁻³⁰ sides (two roundings of a number below 2²⁰), so its cubes
     are equal or adjacent. Only cubes in the same or an adjacent position are paired, each
     adjacent pair once (the offsets whose first non-zero entry is positive), and the
     candidates are kept by the exact distance test. O(N log N + C) for C candidates, which
@@ -108,7 +109,7 @@ def close_pairs_in_cells(points: np.ndarray, radius: float) -> np.ndarray:
     if len(pts) < 2 or not radius > 0:
         return np.empty((0, 2), dtype=np.intp)
     lower = pts.min(axis=0)
-    side = max(2.0 * radius, float((pts.max(axis=0) - lower).max()) / MAX_CELLS_PER_AXIS)
+    side = max((1 + 1e-6) * radius, float((pts.max(axis=0) - lower).max()) / MAX_CELLS_PER_AXIS)
     cells = CellIndex(np.floor((pts - lower) / side).astype(np.int64))
     found_i, found_j = [], []
     for offset in half_neighbourhood(pts.shape[1]):
@@ -119,11 +120,12 @@ def close_pairs_in_cells(points: np.ndarray, radius: float) -> np.ndarray:
     gap = pts[i] - pts[j]
     close = np.sqrt(np.add.reduce(gap * gap, axis=1)) < radius
     i, j = i[close], j[close]
-    pairs = np.column_stack([np.minimum(i, j), np.maximum(i, j)]).astype(np.intp)
-    return pairs[np.lexsort((pairs[:, 1], pairs[:, 0]))]
+    first, second = np.minimum(i, j).astype(np.intp), np.maximum(i, j).astype(np.intp)
+    order = np.argsort(first * len(pts) + second)
+    return np.column_stack([first[order], second[order]])
 
 
-MAX_CELLS_PER_AXIS = 2.0**40
+MAX_CELLS_PER_AXIS = 2.0**20
 """Most cubes along one axis of :func:`close_pairs_in_cells` (cube indices stay exact integers)."""
 
 
