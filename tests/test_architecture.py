@@ -94,6 +94,13 @@ def test_validating_a_shipped_scenario_loads_no_scipy(scenario):
     assert "scipy" not in loaded_by_validating(scenario)
 
 
+@pytest.mark.parametrize("scenario", ["avoidance/ten_boxes --set method=orca", "coordination/x_corridor_5_tff --set policy.method=btpg",
+                                      "coordination/warehouse_50 --set policy.method=optimal"])
+def test_validating_another_method_of_a_shipped_scenario_loads_no_numerical_library(scenario):
+    name, *overrides = scenario.split()
+    assert modules_loaded_by(f"from robofleet.cli.main import main\nmain(['validate', {name!r}, *{overrides!r}])") == []
+
+
 def test_the_public_names_of_every_package_resolve():
     for package in ("robofleet", "robofleet.core", "robofleet.scenarios", *(f"robofleet.{f}" for f in FAMILY_PACKAGES),
                     "robofleet.experiments"):

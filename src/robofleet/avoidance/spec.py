@@ -623,7 +623,8 @@ def check_layout(spec: Spec) -> None:
 
 
 def check_points(field: str, pts: np.ndarray, r: float, ws: Workspace) -> None:
-    """Points at least ``2 r`` apart, ``r`` inside the bounds and ``r`` from every obstacle."""
+    """Points at least ``2 r`` apart, ``r`` inside the bounds and ``r`` from every obstacle
+    (an overlap names the lowest-numbered robot that has one and the first robot it overlaps)."""
     pairs = geometry.close_pairs_in_cells(pts, 2 * r)
     if len(pairs):
         i, j = pairs[0]
