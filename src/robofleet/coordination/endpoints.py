@@ -1,5 +1,5 @@
 """The start and goal check of a coordination scenario (:func:`check_endpoints`), used by the
-scenario model (:mod:`.spec`) and the planner (:mod:`.planner`)."""
+scenario model (:mod:`robofleet.coordination.spec`) and the planner (:mod:`robofleet.coordination.planner`)."""
 
 from __future__ import annotations
 

@@ -1,6 +1,6 @@
 """The word layout of a robot's map rows (:class:`.knowledge.RobotMaps`): bits per word,
 words per block and layers per row. Constants only, so the scenario's memory budget
-(:mod:`.spec`) is computed without loading the compiled map kernels."""
+(:mod:`robofleet.search.spec`) is computed without loading the compiled map kernels."""
 
 WORD = 64
 """Vertices per word of a map row (one bit each)."""
