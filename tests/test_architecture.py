@@ -4,6 +4,7 @@ importing the package and the quick commands load."""
 from __future__ import annotations
 
 import dataclasses
+import functools
 import importlib
 import subprocess
 import sys
@@ -72,6 +73,32 @@ def test_commands_that_answer_at_once_load_no_numerical_library(command):
 def test_validating_a_scenario_loads_no_plotting_or_table_library(scenario):
     code = f"from robofleet.cli.main import main\nmain(['validate', {scenario!r}])\nassert 'scipy.stats' not in sys.modules"
     assert set(modules_loaded_by(code)).isdisjoint({"matplotlib", "pandas", "pyarrow"})
+
+
+SHIPPED_SCENARIOS = sorted(f"{path.parent.name}/{path.stem}" for path in (Path(__file__).parents[1] / "scenarios").glob("*/*.yaml"))
+
+
+@functools.cache
+def loaded_by_validating(scenario: str) -> tuple[str, ...]:
+    """The numerical libraries ``robofleet validate SCENARIO`` loads (one process per scenario)."""
+    return tuple(modules_loaded_by(f"from robofleet.cli.main import main\nmain(['validate', {scenario!r}])"))
+
+
+@pytest.mark.parametrize("scenario", SHIPPED_SCENARIOS)
+def test_validating_a_shipped_scenario_loads_no_compiled_kernel_nor_plotting_or_table_library(scenario):
+    assert set(loaded_by_validating(scenario)).isdisjoint({"numba", "matplotlib", "pandas", "pyarrow"})
+
+
+@pytest.mark.parametrize("scenario", SHIPPED_SCENARIOS)
+def test_validating_a_shipped_scenario_loads_no_scipy(scenario):
+    assert "scipy" not in loaded_by_validating(scenario)
+
+
+@pytest.mark.parametrize("scenario", ["avoidance/ten_boxes --set method=orca", "coordination/x_corridor_5_tff --set policy.method=btpg",
+                                      "coordination/warehouse_50 --set policy.method=optimal"])
+def test_validating_another_method_of_a_shipped_scenario_loads_no_numerical_library(scenario):
+    name, *overrides = scenario.split()
+    assert modules_loaded_by(f"from robofleet.cli.main import main\nmain(['validate', {name!r}, *{overrides!r}])") == []
 
 
 def test_the_public_names_of_every_package_resolve():

@@ -81,6 +81,7 @@ from ..dynamics import double_integrator as di
 from ..dynamics import quadrotor as quad
 from ..dynamics import unicycle as uni
 from .braking import braking_control
+from .controller_params import MPCConfig
 from .navigation.recovery import GoalRotation
 from .rti import CondensedSQP, SQPResult, StateLimit
 
@@ -96,27 +97,6 @@ QP_OPTIONS = {
     "qpoases": {"printLevel": "none", "error_on_fail": False},
     "osqp": {"osqp": {"verbose": False, "eps_abs": 1e-7, "eps_rel": 1e-7}, "error_on_fail": False},
 }
-
-
-class MPCConfig(SpecModel):
-    """Parameters of the B-UAVC MPC."""
-
-    horizon: int = Field(10, gt=0, description="N, number of predicted steps")
-    max_constraints: int = Field(12, gt=0, description="cell rows the problem is built for ('ipopt' and linear models; "
-                                 "'rti' keeps every row the plan can reach)")
-    input_weight: float = Field(1e-3, ge=0, description="w_u")
-    deadlock_steps: int = Field(20, gt=0, description="n_dead")
-    deadlock_progress: float = Field(0.2, ge=0, description="Δp_min [m]: least net displacement over n_dead steps")
-    recover_steps: int = Field(10, gt=0, description="steps with the rotated goal")
-    max_iter: int = Field(30, gt=0, description="IPOPT iteration cap (nonlinear models)")
-    solver: Literal["ipopt", "rti"] = Field("rti", description="nonlinear models: 'rti' (braking-safe condensed "
-                                            "Gauss-Newton SQP around the shifted plan, DAQP QPs, robofleet.avoidance.rti) "
-                                            "or 'ipopt' (the full NLP)")
-    sqp_iterations: int = Field(3, gt=0, description="most QPs per solve on the 'rti' path (1 = pure real-time iteration)")
-    terminal_rest: bool = Field(True, description="quadrotor: the plan ends at rest, level (v_N = 0, φ_N = θ_N = 0)")
-    rest_tolerance: float = Field(0.02, gt=0, description="|v_N|, |φ_N|, |θ_N| bound of terminal_rest [m/s, rad]")
-    noise_band: float = Field(2.0, ge=0, description="'rti' path: soft tightening of stages 2…N, in units of the "
-                              "robot's position σ")
 
 
 class SingleIntegratorParams(SpecModel):

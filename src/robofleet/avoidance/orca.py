@@ -43,24 +43,14 @@ from __future__ import annotations
 
 import numba
 import numpy as np
-from pydantic import Field
 
-from ..core.config import SpecModel
 from ..core.errors import ConfigError
+from .controller_params import OrcaParams
 from .kernels import use_parallel
 from .neighbours import nearest_neighbours
 from .orca_obstacles import ObstacleEdges, nearby_edges, no_obstacles, obstacle_lines
 
 _EPS = 1e-12
-
-
-class OrcaParams(SpecModel):
-    """ORCA parameters (names as in the paper's reference library)."""
-
-    neighbor_dist: float = Field(3.0, gt=0, description="sensing range for neighbours [m]")
-    max_neighbors: int = Field(10, ge=1, description="neighbours considered per agent")
-    time_horizon: float = Field(2.0, gt=0, description="τ: collision-free horizon w.r.t. agents [s]")
-    time_horizon_obst: float = Field(2.0, gt=0, description="τ_o: collision-free horizon w.r.t. static obstacles and walls, at least Δt to keep robots out of them [s]")
 
 
 def neighbours(positions: np.ndarray, params: OrcaParams) -> tuple[np.ndarray, np.ndarray]:

@@ -59,14 +59,9 @@ from ..core.workspace import Workspace
 from ..dynamics.quadrotor import QuadrotorParams
 from .buffer import MIN_DELTA, confidence_quantile, shadow_epsilon
 from .cell3d import shadow_radius
-from .mpc import MPCConfig
-from .navigation.band import BandParams
-from .navigation.detour import DetourParams
-from .navigation.params import LIVENESS_PLACES, NavigationParams
-from .navigation.right_hand import RightHandParams
-from .navigation.route import RouteParams
-from .navigation.yielding import YieldingParams
-from .orca import OrcaParams
+from .controller_params import MPCConfig, OrcaParams
+from .navigation.params import (LIVENESS_PLACES, BandParams, DetourParams, NavigationParams, RightHandParams, RouteParams,
+                                YieldingParams)
 from .placement import halves_points, longest_halves_trip
 
 Point = tuple[float, float]
@@ -628,8 +623,9 @@ def check_layout(spec: Spec) -> None:
 
 
 def check_points(field: str, pts: np.ndarray, r: float, ws: Workspace) -> None:
-    """Points at least ``2 r`` apart, ``r`` inside the bounds and ``r`` from every obstacle."""
-    pairs = geometry.close_pairs(pts, 2 * r)
+    """Points at least ``2 r`` apart, ``r`` inside the bounds and ``r`` from every obstacle
+    (an overlap names the lowest-numbered robot that has one and the first robot it overlaps)."""
+    pairs = geometry.close_pairs_in_cells(pts, 2 * r)
     if len(pairs):
         i, j = pairs[0]
         raise ScenarioError(f"{field}[{i}]", f"robots at least 2·radius = {2 * r} apart", f"{pts[i].tolist()} overlaps robot {j} at {pts[j].tolist()}")
@@ -656,7 +652,7 @@ def check_team_layouts(spec: Spec, teams: list[TeamSpec]) -> None:
     r = spec.robots.radius
     lo, hi = workspace_box(spec)
     for name, pts in (("starts", starts), ("goals", goals)):
-        pairs = geometry.close_pairs(pts, 2 * r)
+        pairs = geometry.close_pairs_in_cells(pts, 2 * r)
         if len(pairs):
             i, j = pairs[0]
             raise ScenarioError(f"teams.layout.{name}[{i}]", f"robots at least 2·radius = {2 * r} apart", f"{pts[i].tolist()} overlaps robot {j}")

@@ -69,6 +69,7 @@ import numpy as np
 
 from .coordination_space import CoordinationSpace
 from .label_flipping import FlipContext
+from .options import DEFAULT_VISIT_BUDGET
 from .segment_graph import SegmentLayout
 
 
@@ -114,11 +115,6 @@ def plan_sides(space: CoordinationSpace, labels: np.ndarray) -> np.ndarray:
     """``(m,)`` index of the side each obstacle's label makes active (its other robot is the label)."""
     first = 2 * np.arange(space.n_obstacles)
     return np.where(space.side_other[first] == labels, first, first + 1)
-
-
-DEFAULT_VISIT_BUDGET = 100_000_000
-"""Vertices the offline searches may visit in all (a few seconds of compiled search; the
-200-robot warehouse instances need about half of it)."""
 
 
 def classify_switchable(space: CoordinationSpace, layout: SegmentLayout, budget: int = DEFAULT_VISIT_BUDGET) -> Classification:

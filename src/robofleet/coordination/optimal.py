@@ -89,34 +89,11 @@ import numpy as np
 
 from .btpg import label_edge_csr, plan_sides, statically_switchable
 from .coordination_space import CoordinationSpace
+from .options import OptimalSettings
 from .segment_graph import IncrementalCycleDetector, SegmentLayout
 
 SATISFIED_TOLERANCE = 1e-9
 """Seconds of slack when testing whether a schedule respects an edge."""
-
-
-@dataclass(frozen=True)
-class OptimalSettings:
-    """How far ahead and how hard the ``optimal`` method searches.
-
-    Attributes
-    ----------
-    horizon:
-        plan steps: an obstacle is decided when one of its robots is at most this far from it.
-    max_open:
-        at most this many obstacles are decided at once, those whose robots are due first
-        (the others keep their labels until a later decision).
-    node_budget:
-        best-first expansions per decision.
-    period:
-        steps between the periodic decisions (a robot stopped at an obstacle that may be
-        relabelled also calls one at once).
-    """
-
-    horizon: int = 50
-    max_open: int = 200
-    node_budget: int = 4
-    period: int = 20
 
 
 @dataclass(frozen=True)

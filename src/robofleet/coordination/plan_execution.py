@@ -25,42 +25,24 @@ from __future__ import annotations
 import functools
 import time
 from dataclasses import dataclass, field
-from enum import Enum
 from typing import Callable
 
 import numpy as np
 
 from ..core.rng import keyed_generator
-from .btpg import DEFAULT_VISIT_BUDGET, Classification, classify_switchable, first_come
+from .btpg import Classification, classify_switchable, first_come
 from .coordination_space import CoordinationSpace
 from .label_flipping import FlipContext, KnownProbabilities, LearnedProbabilities, flip_eligible, tfa_wants_flip, tff_wants_flip
-from .optimal import OptimalOrders, OptimalSettings
+from .optimal import OptimalOrders
+from .options import DEFAULT_VISIT_BUDGET, Estimate, Method, OptimalSettings, Resolution
 from .plain_steps import PlainStepRows, run_plain_steps, space_arrays
 from .rmtrack import ActionRule
-from .segment_graph import IncrementalCycleDetector, Resolution, SegmentLayout, build_segment_layout, has_cycle_full
+from .segment_graph import IncrementalCycleDetector, SegmentLayout, build_segment_layout, has_cycle_full
 from .trajectories import Trajectories
 
 DISTURBANCE_BLOCK = 256
 DISTURBANCE_CACHE_BLOCKS = 128
 """Disturbance blocks kept per process (2 KB per robot each: 5 MB for 20 robots)."""
-
-
-class Method(str, Enum):
-    """Execution policy: plain RMTRACK, RMTRACK with a flip test, BTPG (first come on the
-    offline-classified switchable obstacles) or the optimal orders within a horizon."""
-
-    RMTRACK = "rmtrack"
-    TFF = "tff"
-    TFA = "tfa"
-    BTPG = "btpg"
-    OPTIMAL = "optimal"
-
-
-class Estimate(str, Enum):
-    """Where the flip tests' disturbance probabilities come from."""
-
-    KNOWN = "known"
-    LEARNED = "learned"
 
 
 PAPER_METHODS = (Method.RMTRACK, Method.TFF, Method.TFA)

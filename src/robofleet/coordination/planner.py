@@ -35,9 +35,10 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import dijkstra
 from scipy.spatial import cKDTree
 
-from ..core.errors import InfeasibleError, ScenarioError
+from ..core.errors import InfeasibleError
 from ..core.geometry import point_segment_distance
 from ..core.workspace import Workspace
+from .endpoints import check_endpoints
 from .trajectories import Trajectories, make_trajectories
 
 
@@ -183,21 +184,6 @@ def plan_prioritized(workspace: Workspace, starts: np.ndarray, goals: np.ndarray
             raise InfeasibleError(f"robots[{i}]: expected a trajectory to goal {goals[i].round(1).tolist()}, received none within {settings.max_steps} steps")
         paths.append(path)
     return make_trajectories(paths, settings.radius, settings.dt)
-
-
-def check_endpoints(workspace: Workspace, starts: np.ndarray, goals: np.ndarray, radius: float) -> None:
-    """Starts and goals must have clearance ``≥ r`` and be ``≥ 2r`` apart (ScenarioError otherwise)."""
-    for name, pts in (("starts", starts), ("goals", goals)):
-        clearance = workspace.clearance(pts)
-        bad = np.flatnonzero(clearance < radius)
-        if len(bad):
-            raise ScenarioError(f"robots.{name}[{bad[0]}]", f"a point inside the free space with clearance >= radius {radius}",
-                                pts[bad[0]].round(2).tolist())
-        d = np.linalg.norm(pts[:, None] - pts[None], axis=-1) + np.eye(len(pts)) * 1e18
-        i, j = np.unravel_index(np.argmin(d), d.shape)
-        if len(pts) > 1 and d[i, j] < 2 * radius:
-            raise ScenarioError(f"robots.{name}[{max(i, j)}]", f"at least 2r = {2 * radius} from robots.{name}[{min(i, j)}]",
-                                pts[max(i, j)].round(2).tolist())
 
 
 def paths_to_array(paths: list[np.ndarray]) -> np.ndarray:

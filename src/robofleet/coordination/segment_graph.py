@@ -45,7 +45,6 @@ from __future__ import annotations
 
 from collections import Counter
 from dataclasses import dataclass
-from enum import Enum
 import heapq
 
 import numba
@@ -55,13 +54,7 @@ from scipy.sparse.csgraph import connected_components
 
 from ..core.errors import InfeasibleError
 from .coordination_space import CoordinationSpace
-
-
-class Resolution(str, Enum):
-    """How finely obstacle-label edges follow an obstacle's shape."""
-
-    EXACT = "exact"
-    DEFINITION3 = "definition3"
+from .options import Resolution
 
 
 @dataclass(frozen=True)

@@ -49,12 +49,9 @@ from ..core.errors import ScenarioError
 from ..core.rng import MAX_SEED
 from ..core.spec_blocks import Point, RegionSpec, WorkspaceSpec
 from ..core.workspace import Workspace
-from .btpg import DEFAULT_VISIT_BUDGET
+from .endpoints import check_endpoints
 from .maps import warehouse_stations, warehouse_workspace, x_corridor_workspace
-from .optimal import OptimalSettings
-from .plan_execution import Estimate, Method
-from .planner import check_endpoints
-from .segment_graph import Resolution
+from .options import DEFAULT_VISIT_BUDGET, Estimate, Method, OptimalSettings, Resolution
 from .trajectories import Trajectories, first_plan_collision, load_trajectories
 
 ROADMAP_EDGE_BYTES = 200

@@ -35,7 +35,7 @@ __getattr__, __dir__ = exports(__name__, {
     ".model": ["Decision", "LocalFrames", "Snapshot", "look"],
     ".patterns": ["Pattern", "make_pattern", "validate_points"],
     ".randomized": ["RandomizedAlgorithm", "ranking"],
-    ".schedulers": ["LookComputeMove", "SchedulerSpec", "run"],
+    ".schedulers": ["LookComputeMove", "run"], ".scheduler_spec": ["SchedulerSpec"],
     ".simulation": ["simulate"],
     ".spec": ["Spec"],
     ".stripe": ["StripeAlgorithm"],

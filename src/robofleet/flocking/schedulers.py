@@ -37,15 +37,12 @@ from __future__ import annotations
 
 import heapq
 from dataclasses import dataclass
-from typing import Literal
 
 import numpy as np
-from pydantic import Field, model_validator
 
 from ..core.errors import ConfigError, ScenarioError
 from ..core.budget import check_allocation
 from ..core.recorder import Recorder
-from ..core.config import SpecModel
 from .basic import BasicAlgorithm
 from .compiled import BASIC, HULA_HOOP, RANDOMIZED, STRIPE, heapify, next_events, point_at, run_events
 from .hula_hoop import HulaHoopAlgorithm
@@ -53,33 +50,8 @@ from .leader import LeaderCourse
 from .model import Algorithm, LocalFrames, look
 from .patterns import Pattern
 from .randomized import RandomizedAlgorithm
+from .scheduler_spec import SchedulerSpec
 from .stripe import StripeAlgorithm
-
-
-class SchedulerSpec(SpecModel):
-    """Scheduler parameters (time unit = one leader move, as in Sec. 4.2)."""
-
-    kind: Literal["fsync", "ssync", "async"] = "async"
-    activation_probability: float = Field(default=0.5, gt=0.0, le=1.0)
-    cycle_min: float = Field(default=0.5, gt=0.0)
-    cycle_max: float = Field(default=1.5, gt=0.0)
-    rigidity: float = Field(default=1.0, gt=0.0, le=1.0)
-    min_move: float = Field(default=0.01, gt=0.0)
-
-    @model_validator(mode="after")
-    def _bounds(self):
-        if self.cycle_max < self.cycle_min:
-            raise ScenarioError("cycle_max", f"a value >= cycle_min ({self.cycle_min})", self.cycle_max)
-        return self
-
-    @property
-    def move_time_max(self) -> float:
-        """Longest possible Move (max_j τ_f^M(j) of Sec. 3.2)."""
-        return self.cycle_max if self.kind == "async" else 1.0
-
-    @property
-    def move_time_min(self) -> float:
-        return self.cycle_min if self.kind == "async" else 1.0
 
 
 @dataclass

@@ -41,7 +41,7 @@ from .knowledge import ChiralityAlgorithm, MemoryAlgorithm, ObservableHeadingAlg
 from .leader import RandomTurnsLeader, ScriptedLeader
 from .patterns import Pattern, PatternKind, make_pattern, validate_points
 from .randomized import RandomizedAlgorithm
-from .schedulers import SchedulerSpec
+from .scheduler_spec import SchedulerSpec
 from .stripe import StripeAlgorithm
 
 ALGORITHMS = {

@@ -20,8 +20,9 @@ Vertices are integer ids; every per-step query is a table look-up:
   the blockage when this distance is at most ``r_so`` (see :mod:`.sensing`),
 * ``priority``     ``(V,)`` int: rank of the vertex in the step-4 choice order.
 
-Building a grid is O(V log V) with a k-d tree plus vectorized shapely distance queries;
-it is done once per area and cached by callers.
+Building a grid is O(V log V) with a cell list (:func:`robofleet.core.geometry.close_pairs_in_cells`)
+plus vectorized shapely distance queries; it is done once per area and cached by callers.
+Building and checking one loads no scipy (only :meth:`Grid.nearest_vertex` does).
 """
 
 from __future__ import annotations
@@ -32,13 +33,11 @@ from enum import Enum
 
 import numpy as np
 import shapely
-from scipy import sparse
-from scipy.sparse import csgraph
-from scipy.spatial import cKDTree
 from shapely.geometry import Polygon, box
 
 from ..core.budget import HOW_TO_RAISE, format_bytes, memory_budget
 from ..core.errors import ConfigError, short_repr
+from ..core.geometry import close_pairs_in_cells
 from ..core.workspace import Workspace
 
 #: tolerance of length comparisons (equality conditions of Table 1 are used verbatim)
@@ -106,8 +105,7 @@ class Grid:
     def components(self) -> np.ndarray:
         """Connected-component label of every vertex in the graph of travellable edges."""
         src, slot = np.nonzero(self.edge_ok)
-        graph = sparse.coo_matrix((np.ones(len(src)), (src, self.neighbours[src, slot])), shape=(self.n_vertices,) * 2)
-        return csgraph.connected_components(graph, directed=False)[1]
+        return component_labels(self.n_vertices, src, self.neighbours[src, slot])
 
     @cached_property
     def n_components(self) -> int:
@@ -124,6 +122,8 @@ class Grid:
 
     def nearest_vertex(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Ids of the vertices nearest to ``points (m, 2)`` and their distances."""
+        from scipy.spatial import cKDTree  # imported on use: building and checking a grid loads no scipy
+
         dist, idx = cKDTree(self.points).query(np.asarray(points, dtype=float).reshape(-1, 2))
         return idx.astype(np.intp), dist
 
@@ -254,8 +254,11 @@ def check_grid_arguments(workspace: Workspace, kind: GridKind | str, a: float, r
 
 
 def neighbour_table(points: np.ndarray, a: float, degree: int) -> np.ndarray:
-    """``(V, degree)`` ids of the points at distance ``a`` (``-1`` padded), ordered by angle."""
-    pairs = cKDTree(points).query_pairs(a * (1 + 1e-6), output_type="ndarray")
+    """``(V, degree)`` ids of the points at distance ``a`` (``-1`` padded), ordered by angle.
+
+    The pairs closer than ``a (1 + 10⁻⁶)``: a lattice's next-nearest points lie at least
+    ``√2 a`` apart (``√3 a`` for triangles), so the tolerance only absorbs rounding."""
+    pairs = close_pairs_in_cells(points, a * (1 + 1e-6))
     table = np.full((len(points), degree), -1, dtype=np.intp)
     if len(pairs) == 0:
         return table
@@ -267,6 +270,33 @@ def neighbour_table(points: np.ndarray, a: float, degree: int) -> np.ndarray:
     slot = np.arange(len(src)) - np.searchsorted(src, src)
     table[src, slot] = dst
     return table
+
+
+def component_labels(n_vertices: int, src: np.ndarray, dst: np.ndarray) -> np.ndarray:
+    """Connected-component label of every vertex of the undirected graph with edges
+    ``src[e]``–``dst[e]``, the components numbered in the order of their smallest vertex.
+
+    Hooking and shortcutting (Shiloach and Vishkin's scheme, minimum hooking only): every
+    vertex points to a smaller or equal vertex of its component; each round hooks the
+    larger root of every edge whose ends have different roots onto the smaller one, then
+    shortcuts every pointer to its root. Pointers only decrease, so no cycle forms and the
+    rounds end when both ends of every edge share a root; the smallest vertex of a
+    component never gets hooked, so it is the root of all of it.
+    """
+    parent = np.arange(n_vertices)
+    src, dst = np.asarray(src, dtype=np.intp), np.asarray(dst, dtype=np.intp)
+    while True:
+        a, b = parent[src], parent[dst]
+        apart = a != b
+        if not apart.any():
+            break
+        np.minimum.at(parent, np.maximum(a[apart], b[apart]), np.minimum(a[apart], b[apart]))
+        while True:
+            root = parent[parent]
+            if np.array_equal(root, parent):
+                break
+            parent = root
+    return np.unique(parent, return_inverse=True)[1].astype(np.int32)
 
 
 def chunked(distance, points: np.ndarray, size: int = 1 << 16) -> np.ndarray:

@@ -34,11 +34,9 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from .map_words import BLOCK_WORDS, LAYERS, WORD
+
 ONE = np.uint64(1)
-WORD = 64
-BLOCK_WORDS = 4
-"""Words per block of a map row (256 vertices per layer)."""
-LAYERS = 4
 
 
 class RobotMaps:

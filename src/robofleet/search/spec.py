@@ -37,7 +37,7 @@ from ..core.spec_blocks import WorkspaceSpec
 from ..core.workspace import Workspace
 from .assumptions import AssumptionReport, check_assumptions
 from .grids import VERTEX_BYTES, Grid, GridKind, build_grid, vertex_bound
-from .knowledge import BLOCK_WORDS, LAYERS, WORD
+from .map_words import BLOCK_WORDS, LAYERS, WORD
 from .timing import MotionTiming
 
 Point = tuple[float, float]

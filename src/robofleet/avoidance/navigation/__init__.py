@@ -9,7 +9,8 @@ chance constraint for liveness. Shared by every model: the goal checker (:mod:`.
 and the progress checker (:mod:`.progress`).
 """
 
-from .params import NavigationParams
-from .pipeline import PIPELINES, StepState, TeamNavigation, pipeline_of
+from ...core.lazy import exports
 
 __all__ = ["NavigationParams", "PIPELINES", "StepState", "TeamNavigation", "pipeline_of"]
+__getattr__, __dir__ = exports(__name__, {".params": ["NavigationParams"],
+                                          ".pipeline": ["PIPELINES", "StepState", "TeamNavigation", "pipeline_of"]})

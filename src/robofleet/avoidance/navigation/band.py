@@ -18,25 +18,11 @@ effects: docs/results/avoidance.md "Measurements behind the navigation stages".
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 
 from ..cell import Cells, Kind, cell_rows
 from ..projection import Projection, project_onto_cells
-
-
-@dataclass(frozen=True)
-class BandParams:
-    """The band-return stage's parameter block.
-
-    Attributes
-    ----------
-    sigmas: the depth beyond an obstacle face, in σ of the position estimate, that sends a
-        robot back into its cell (used with σ > 0 only: the deterministic methods have no band).
-    """
-
-    sigmas: float = 2.0
+from .params import BandParams
 
 
 def out_of_the_band(estimates: np.ndarray, proj: Projection, cells: Cells, depth: float) -> Projection:

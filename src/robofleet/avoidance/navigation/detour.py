@@ -45,32 +45,11 @@ from scipy.spatial import cKDTree
 from shapely.geometry import Point
 
 from . import route
+from .params import DetourParams, YieldingParams
 from .route import Halfplanes, halfplanes, segments_free
-from .yielding import StillTracker, YieldingParams
+from .yielding import StillTracker
 
 _EPS = 1e-9
-
-
-@dataclass(frozen=True)
-class DetourParams:
-    """The detour stage's parameter block (module docstring); the still test comes from
-    :class:`.yielding.YieldingParams` (``still_radius``, ``still_steps``), shared with the
-    yielding stage.
-
-    Attributes
-    ----------
-    enabled: blocked robots re-plan around neighbours that hold still.
-    steps: the most steps one re-plan lasts.
-    block_steps: steps a robot's own estimate must hold still before it re-plans.
-    node_factor: the discs' nodes lie ``node_factor`` × the pair clearance from each neighbour.
-    sight_factor: sight lines keep ``sight_factor`` × the pair clearance from each neighbour.
-    """
-
-    enabled: bool = True
-    steps: int = 300
-    block_steps: int = 30
-    node_factor: float = 1.15
-    sight_factor: float = 0.9
 
 
 def disc_polygons(centres: np.ndarray, radius: np.ndarray | float) -> list[np.ndarray]:

@@ -5,11 +5,111 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from .band import BandParams
-from .detour import DetourParams
-from .right_hand import RightHandParams
-from .route import RouteParams
-from .yielding import YieldingParams
+
+@dataclass(frozen=True)
+class RouteParams:
+    """The route stage's parameter block (:mod:`.route`).
+
+    Attributes
+    ----------
+    enabled: steer to roadmap sub-goals around the obstacles.
+    passage_sigmas: the noise margin of the passages, in σ of the position estimate.
+    node_factor: the nodes lie ``node_factor × c`` from the obstacles.
+    sight_factor: sight lines keep ``sight_factor × c`` from the obstacles.
+    gap_factor: gaps narrower than ``gap_factor × (c + passage_sigmas σ)`` are closed.
+    """
+
+    enabled: bool = True
+    passage_sigmas: float = 1.5
+    node_factor: float = 1.15
+    sight_factor: float = 0.9
+    gap_factor: float = 1.8
+
+
+@dataclass(frozen=True)
+class DetourParams:
+    """The detour stage's parameter block (:mod:`.detour`); the still test comes from
+    :class:`YieldingParams` (``still_radius``, ``still_steps``), shared with the
+    yielding stage.
+
+    Attributes
+    ----------
+    enabled: blocked robots re-plan around neighbours that hold still.
+    steps: the most steps one re-plan lasts.
+    block_steps: steps a robot's own estimate must hold still before it re-plans.
+    node_factor: the discs' nodes lie ``node_factor`` × the pair clearance from each neighbour.
+    sight_factor: sight lines keep ``sight_factor`` × the pair clearance from each neighbour.
+    """
+
+    enabled: bool = True
+    steps: int = 300
+    block_steps: int = 30
+    node_factor: float = 1.15
+    sight_factor: float = 0.9
+
+
+@dataclass(frozen=True)
+class YieldingParams:
+    """The yielding stage's parameter block (:mod:`.yielding`).
+
+    Attributes
+    ----------
+    enabled: arrived robots yield (off: they hold at their goals, as in the paper).
+    near: neighbour distance [m] that counts as lingering near a parked robot.
+    linger_steps: consecutive steps a neighbour must linger before the robot yields
+        (or, while it yields, before it moves further aside).
+    aside: distance [m] a yielding robot moves away from the lingering neighbours.
+    max_aside: largest distance [m] from its goal a yielding robot goes.
+    aside_turn: how far [deg] the step aside turns counter-clockwise from straight away.
+    clear_steps: steps without any neighbour within ``near`` before it returns.
+    max_yield_steps: most steps one yield lasts.
+    still_radius, still_steps: a neighbour whose estimate stays within ``still_radius``
+        [m] of its running mean for ``still_steps`` steps holds still (parked, most
+        likely) and is not yielded to (about 4σ at the shipped σ = 0.1 m). The detour
+        stage shares the test. Models whose blocked robots come to rest (double
+        integrators, unicycles) use radius 0: holding still does not tell a parked
+        neighbour from a blocked one there.
+    return_steps: most steps a robot drives back to its goal before holding again.
+    """
+
+    enabled: bool = True
+    near: float = 1.5
+    linger_steps: int = 30
+    aside: float = 0.6
+    max_aside: float = 1.5
+    aside_turn: float = 45.0
+    clear_steps: int = 20
+    max_yield_steps: int = 150
+    still_radius: float = 0.4
+    still_steps: int = 50
+    return_steps: int = 200
+
+
+@dataclass(frozen=True)
+class RightHandParams:
+    """The right-hand stage's parameter block (:mod:`.right_hand`).
+
+    Attributes
+    ----------
+    angle: how far [deg] a robot blocked by a neighbour turns its target clockwise (0: off).
+    face_near: a neighbour's face closer than this [m] to the estimate counts as blocking.
+    """
+
+    angle: float = 45.0
+    face_near: float = 0.5
+
+
+@dataclass(frozen=True)
+class BandParams:
+    """The band-return stage's parameter block (:mod:`.band`).
+
+    Attributes
+    ----------
+    sigmas: the depth beyond an obstacle face, in σ of the position estimate, that sends a
+        robot back into its cell (used with σ > 0 only: the deterministic methods have no band).
+    """
+
+    sigmas: float = 2.0
 
 
 @dataclass(frozen=True)

@@ -27,26 +27,11 @@ effects: docs/results/avoidance.md "Measurements behind the navigation stages".
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 
 from ..cell import Cells, Kind, cell_rows
 from ..projection import Projection, project_onto_cells
-
-
-@dataclass(frozen=True)
-class RightHandParams:
-    """The right-hand stage's parameter block.
-
-    Attributes
-    ----------
-    angle: how far [deg] a robot blocked by a neighbour turns its target clockwise (0: off).
-    face_near: a neighbour's face closer than this [m] to the estimate counts as blocking.
-    """
-
-    angle: float = 45.0
-    face_near: float = 0.5
+from .params import RightHandParams
 
 
 def blocked_by_robot(estimates: np.ndarray, active: np.ndarray, cells, near: float) -> np.ndarray:

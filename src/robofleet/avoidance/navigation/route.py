@@ -53,27 +53,9 @@ from scipy.sparse.csgraph import dijkstra
 from shapely.geometry import Polygon
 from shapely.ops import nearest_points
 
+from .params import RouteParams
+
 _EPS = 1e-9
-
-
-@dataclass(frozen=True)
-class RouteParams:
-    """The route stage's parameter block (module docstring).
-
-    Attributes
-    ----------
-    enabled: steer to roadmap sub-goals around the obstacles.
-    passage_sigmas: the noise margin of the passages, in σ of the position estimate.
-    node_factor: the nodes lie ``node_factor × c`` from the obstacles.
-    sight_factor: sight lines keep ``sight_factor × c`` from the obstacles.
-    gap_factor: gaps narrower than ``gap_factor × (c + passage_sigmas σ)`` are closed.
-    """
-
-    enabled: bool = True
-    passage_sigmas: float = 1.5
-    node_factor: float = 1.15
-    sight_factor: float = 0.9
-    gap_factor: float = 1.8
 
 
 @dataclass(frozen=True)

@@ -35,44 +35,9 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
+from .params import YieldingParams
+
 HOLD, YIELD, RETURN = 0, 1, 2
-
-
-@dataclass(frozen=True)
-class YieldingParams:
-    """The yielding stage's parameter block (module docstring).
-
-    Attributes
-    ----------
-    enabled: arrived robots yield (off: they hold at their goals, as in the paper).
-    near: neighbour distance [m] that counts as lingering near a parked robot.
-    linger_steps: consecutive steps a neighbour must linger before the robot yields
-        (or, while it yields, before it moves further aside).
-    aside: distance [m] a yielding robot moves away from the lingering neighbours.
-    max_aside: largest distance [m] from its goal a yielding robot goes.
-    aside_turn: how far [deg] the step aside turns counter-clockwise from straight away.
-    clear_steps: steps without any neighbour within ``near`` before it returns.
-    max_yield_steps: most steps one yield lasts.
-    still_radius, still_steps: a neighbour whose estimate stays within ``still_radius``
-        [m] of its running mean for ``still_steps`` steps holds still (parked, most
-        likely) and is not yielded to (about 4σ at the shipped σ = 0.1 m). The detour
-        stage shares the test. Models whose blocked robots come to rest (double
-        integrators, unicycles) use radius 0: holding still does not tell a parked
-        neighbour from a blocked one there.
-    return_steps: most steps a robot drives back to its goal before holding again.
-    """
-
-    enabled: bool = True
-    near: float = 1.5
-    linger_steps: int = 30
-    aside: float = 0.6
-    max_aside: float = 1.5
-    aside_turn: float = 45.0
-    clear_steps: int = 20
-    max_yield_steps: int = 150
-    still_radius: float = 0.4
-    still_steps: int = 50
-    return_steps: int = 200
 
 
 @dataclass
