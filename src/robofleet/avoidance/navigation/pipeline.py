@@ -43,7 +43,7 @@ from .band import out_of_the_band
 from .detour import Detours
 from .goal import GoalChecker
 from .params import NavigationParams
-from .progress import DeadlockParams, livelocks, stalled_along_route
+from .progress import DeadlockParams, ProgressChecker
 from .recovery import NORMAL, GoalRotation, count_down, recovery_targets, start_recovery
 from .right_hand import turned_projection, turned_targets
 from .route import Route
@@ -54,15 +54,18 @@ MPC_NO_MPC, MPC_SOLVED, MPC_FALLBACK, MPC_ARRIVED = -1, 0, 1, 2  # mpc_status co
 PIPELINES: dict[str, tuple[str, ...]] = {
     "single_integrator": ("goal", "route", "detour", "recovery", "yielding", "home", "project", "right_hand", "band",
                           "keep", "progress"),
-    "double_integrator": ("goal", "route", "detour", "right_hand", "yielding", "home", "recovery", "keep"),
-    "unicycle": ("goal", "route", "yielding", "home", "recovery", "keep"),
+    "double_integrator": ("goal", "route", "detour", "right_hand", "yielding", "home", "recovery", "keep", "progress"),
+    "unicycle": ("goal", "route", "yielding", "home", "recovery", "keep", "progress"),
     "mpc": ("goal", "home", "keep"),
 }
 """The stages of each pipeline, in order. Single integrators recover on the route's target
 and turn their projected target; double integrators turn the target before their braking
 rule projects it, and recover by goal rotation; differential-drive robots take neither
 the right-hand turn nor detours (their three-projection controller drives the turned arcs
-into the walls); the MPC (any model with ``controller: mpc``) runs appendix C's rotation
+into the walls). Every navigated model finds its stuck robots with the one progress checker
+(:class:`.progress.ProgressChecker`, on the route's path length left); with navigation off,
+the paper's controller of double integrators and unicycles keeps appendix C's net
+displacement (:class:`.recovery.GoalRotation`). The MPC (any model with ``controller: mpc``) runs appendix C's rotation
 inside its own controller and no navigation stage."""
 
 
@@ -118,11 +121,7 @@ class TeamNavigation:
     mode: np.ndarray = None
     mode_left: np.ndarray = None
     vertex: np.ndarray = None
-    history: np.ndarray = None
-    speed_history: np.ndarray = None
-    step_count: int = 0
-    deadlocks: np.ndarray = None
-    livelock_count: np.ndarray = None
+    progress: ProgressChecker = None
     fallback_steps: int = 0  # MPC robot-steps that fell back, and that were solved
     solve_steps: int = 0
     mpc_status: np.ndarray = None
@@ -131,14 +130,13 @@ class TeamNavigation:
     def __post_init__(self):
         self.stages = [STAGES.get((name, self.pipeline), STAGES.get(name)) for name in PIPELINES[self.pipeline]]
         self.mpc_status = np.full(self.n, MPC_NO_MPC, np.int8)
-        n, window = self.n, max(self.deadlock.window, 1)
+        n = self.n
         self.goal = GoalChecker.initial(n, self.tolerance)
         self.mode, self.mode_left, self.vertex = np.zeros(n, np.int8), np.zeros(n, np.int32), np.zeros((n, 2))
-        self.history, self.speed_history = np.full((window, n), np.nan), np.zeros((window, n))
-        self.deadlocks, self.livelock_count = np.zeros(n, np.int64), np.zeros(n, np.int64)
+        self.progress = ProgressChecker(self.deadlock, n, self.v_max, self.dt)
         if self.params.enabled and self.pipeline != "mpc":
             self.parking = ParkingState.initial(n)
-        if self.pipeline in ("double_integrator", "unicycle"):
+        if self.pipeline in ("double_integrator", "unicycle") and not self.navigating:
             d = self.deadlock
             self.rotation = GoalRotation(n, d.window, d.progress_fraction * self.v_max * d.window * self.dt, d.recover_steps)
 
@@ -162,7 +160,12 @@ class TeamNavigation:
         """Deadlock detections per robot so far."""
         if self.pipeline == "mpc":
             return self.keeper.deadlocks
-        return self.rotation.deadlocks if self.rotation is not None else self.deadlocks
+        return self.rotation.deadlocks if self.rotation is not None else self.progress.deadlocks
+
+    @property
+    def livelock_count(self) -> np.ndarray:
+        """Of the deadlock detections, those classed as livelocks (single integrators)."""
+        return self.progress.livelock_count
 
     def command(self, p: np.ndarray, goals: np.ndarray, cells: Cells, state: np.ndarray | None = None) -> StepState:
         """One step of the pipeline from the estimates ``p``, the goals and the cells (and
@@ -210,8 +213,14 @@ def single_integrator_recovery(t: TeamNavigation, s: StepState) -> None:
 
 
 def rotation_recovery(t: TeamNavigation, s: StepState) -> None:
-    """Appendix C's detection and rotation on the net displacement (:class:`.recovery.GoalRotation`)."""
-    s.target = t.rotation.working_goals(s.p, s.target, t.arrived)
+    """Steer to the rotated target while recovering (navigation on: recovery starts in
+    ``progress``); with navigation off, appendix C's detection and rotation on the net
+    displacement (:class:`.recovery.GoalRotation`), as the paper's controller has it."""
+    if t.rotation is not None:
+        s.target = t.rotation.working_goals(s.p, s.target, t.arrived)
+    else:
+        s.route_target = s.target
+        s.target = recovery_targets(s.p, s.target, t.mode, t.vertex)
 
 
 def yielding_stage(t: TeamNavigation, s: StepState) -> None:
@@ -246,25 +255,27 @@ def band_stage(t: TeamNavigation, s: StepState) -> None:
 
 
 def progress_stage(t: TeamNavigation, s: StepState) -> None:
-    """Which robots are stuck on their way (:func:`.progress.stalled_along_route`); their
-    recovery starts (the obstacle branch only without a route), and every recovery counts down."""
-    stuck = stalled_along_route(s.to_go, s.move_dist, t.history, t.step_count, ~t.arrived & (t.mode == NORMAL), t.v_max, t.dt,
-                                t.deadlock)
-    t.deadlocks += stuck
+    """Which robots are stuck on their way (:class:`.progress.ProgressChecker` on the path
+    length left); their recovery starts (the obstacle branch only for single integrators
+    without a route), and every recovery counts down. Models whose paper controller keeps
+    :class:`.recovery.GoalRotation` (navigation off) pass."""
+    if t.rotation is not None:
+        return
+    sitting = None if s.move_dist is None else s.move_dist < 1e-9  # projected target at the estimate (empty cell: inf)
+    stuck = t.progress.observe(s.to_go, ~t.arrived & (t.mode == NORMAL), sitting)
     if stuck.any():
-        t.livelock_count += livelocks(stuck, t.speed_history, t.v_max)
-    if t.deadlock.enabled and stuck.any():
         grown = t.grown if not (t.navigating and t.route is not None) else None  # the roadmap already routes around obstacles
-        start_recovery(stuck, s.p, s.route_target, s.cells, s.proj.active, t.mode, t.mode_left, t.vertex, t.deadlock, grown)
+        active = None if s.proj is None else s.proj.active
+        start_recovery(stuck, s.p, s.route_target, s.cells, active, t.mode, t.mode_left, t.vertex, t.deadlock, grown)
     count_down(s.p, t.mode, t.mode_left, t.vertex, max(t.tolerance, float(np.max(t.v_max)) * t.dt))
-    t.step_count += 1
 
 
 # -- the cell-keeping controllers ---------------------------------------------------------
 def keep_single_integrator(t: TeamNavigation, s: StepState) -> None:
     """The one-step controller (appendix C): toward the projected target at most ``v_max``."""
     hold = t.arrived & ~s.moving
-    s.u, t.speed_history[t.step_count % len(t.speed_history)], s.move_dist = steer(s.p, s.proj, t.v_max, t.dt, hold)
+    s.u, speed, s.move_dist = steer(s.p, s.proj, t.v_max, t.dt, hold)
+    t.progress.record_speed(speed)
     s.empty = s.proj.empty
 
 
