@@ -54,18 +54,20 @@ MPC_NO_MPC, MPC_SOLVED, MPC_FALLBACK, MPC_ARRIVED = -1, 0, 1, 2  # mpc_status co
 PIPELINES: dict[str, tuple[str, ...]] = {
     "single_integrator": ("goal", "route", "detour", "recovery", "yielding", "home", "project", "right_hand", "band",
                           "keep", "progress"),
-    "double_integrator": ("goal", "route", "detour", "right_hand", "yielding", "home", "recovery", "keep", "progress"),
-    "unicycle": ("goal", "route", "yielding", "home", "recovery", "keep", "progress"),
+    "double_integrator": ("goal", "route", "detour", "right_hand", "yielding", "home", "recovery", "keep"),
+    "unicycle": ("goal", "route", "yielding", "home", "recovery", "keep"),
     "mpc": ("goal", "home", "keep"),
 }
 """The stages of each pipeline, in order. Single integrators recover on the route's target
 and turn their projected target; double integrators turn the target before their braking
 rule projects it, and recover by goal rotation; differential-drive robots take neither
 the right-hand turn nor detours (their three-projection controller drives the turned arcs
-into the walls). Every navigated model finds its stuck robots with the one progress checker
-(:class:`.progress.ProgressChecker`, on the route's path length left); with navigation off,
-the paper's controller of double integrators and unicycles keeps appendix C's net
-displacement (:class:`.recovery.GoalRotation`). The MPC (any model with ``controller: mpc``) runs appendix C's rotation
+into the walls). Single integrators find their stuck robots with the progress checker
+(:class:`.progress.ProgressChecker`, on the route's path length left), which the safety
+filter shares; double integrators and unicycles keep appendix C's net displacement
+(:class:`.recovery.GoalRotation`): on the path length left, unicycles turning in place and
+double integrators accelerating read as stuck (docs/results/avoidance.md "One progress
+checker"). The MPC (any model with ``controller: mpc``) runs appendix C's rotation
 inside its own controller and no navigation stage."""
 
 
@@ -136,7 +138,7 @@ class TeamNavigation:
         self.progress = ProgressChecker(self.deadlock, n, self.v_max, self.dt)
         if self.params.enabled and self.pipeline != "mpc":
             self.parking = ParkingState.initial(n)
-        if self.pipeline in ("double_integrator", "unicycle") and not self.navigating:
+        if self.pipeline in ("double_integrator", "unicycle"):
             d = self.deadlock
             self.rotation = GoalRotation(n, d.window, d.progress_fraction * self.v_max * d.window * self.dt, d.recover_steps)
 
@@ -213,14 +215,8 @@ def single_integrator_recovery(t: TeamNavigation, s: StepState) -> None:
 
 
 def rotation_recovery(t: TeamNavigation, s: StepState) -> None:
-    """Steer to the rotated target while recovering (navigation on: recovery starts in
-    ``progress``); with navigation off, appendix C's detection and rotation on the net
-    displacement (:class:`.recovery.GoalRotation`), as the paper's controller has it."""
-    if t.rotation is not None:
-        s.target = t.rotation.working_goals(s.p, s.target, t.arrived)
-    else:
-        s.route_target = s.target
-        s.target = recovery_targets(s.p, s.target, t.mode, t.vertex)
+    """Appendix C's detection and rotation on the net displacement (:class:`.recovery.GoalRotation`)."""
+    s.target = t.rotation.working_goals(s.p, s.target, t.arrived)
 
 
 def yielding_stage(t: TeamNavigation, s: StepState) -> None:
@@ -256,17 +252,13 @@ def band_stage(t: TeamNavigation, s: StepState) -> None:
 
 def progress_stage(t: TeamNavigation, s: StepState) -> None:
     """Which robots are stuck on their way (:class:`.progress.ProgressChecker` on the path
-    length left); their recovery starts (the obstacle branch only for single integrators
-    without a route), and every recovery counts down. Models whose paper controller keeps
-    :class:`.recovery.GoalRotation` (navigation off) pass."""
-    if t.rotation is not None:
-        return
-    sitting = None if s.move_dist is None else s.move_dist < 1e-9  # projected target at the estimate (empty cell: inf)
+    length left); their recovery starts (the obstacle branch only without a route), and
+    every recovery counts down."""
+    sitting = s.move_dist < 1e-9  # projected target at the estimate (an empty cell passes inf)
     stuck = t.progress.observe(s.to_go, ~t.arrived & (t.mode == NORMAL), sitting)
     if stuck.any():
         grown = t.grown if not (t.navigating and t.route is not None) else None  # the roadmap already routes around obstacles
-        active = None if s.proj is None else s.proj.active
-        start_recovery(stuck, s.p, s.route_target, s.cells, active, t.mode, t.mode_left, t.vertex, t.deadlock, grown)
+        start_recovery(stuck, s.p, s.route_target, s.cells, s.proj.active, t.mode, t.mode_left, t.vertex, t.deadlock, grown)
     count_down(s.p, t.mode, t.mode_left, t.vertex, max(t.tolerance, float(np.max(t.v_max)) * t.dt))
 
 

@@ -1,11 +1,11 @@
 """Progress checker: which robots are stuck (Zhu et al. 2022, appendix C; docs/theory/buavc.md
-"Deadlock heuristic"), one checker for every navigated model and the safety filter. The
-recovery stage (:mod:`.recovery`) acts on what it finds.
+"Deadlock heuristic"), one checker shared by the single integrators' navigation pipeline
+and the safety filter. The recovery stage (:mod:`.recovery`) acts on what it finds.
 
 **Measure.** Progress is the decrease of the *distance left* ``L`` over the last
 ``window`` steps. What ``L`` is depends only on what the user of the checker knows of the
 way: the route's remaining path length ``‖p̂ − v‖ + D_i(v)`` (or ``‖g − p̂‖`` without a
-route) in the navigation pipeline of every model; in the safety filter, which knows no
+route) in the navigation pipeline; in the safety filter, which knows no
 goal, the motion asked for is the way, and each step ``L`` shrinks by the motion made
 along the asked direction. A robot the caller marks as *driving* (not arrived, not
 recovering; in the filter: it asked for at least the threshold's motion over the window)
@@ -30,10 +30,11 @@ flagged at most once per ``window`` steps and a recovery always has its full len
 window that is not full (the first ``window − 1`` steps, or after a restart) flags only
 sitting robots; nothing is flagged while ``enabled`` is off.
 
-The paper's controller of the models other than single integrators (``navigation:
-{enabled: false}``, and the MPC) keeps appendix C's net displacement as the authors'
-release measures it (:class:`.recovery.GoalRotation`), so those reproductions stay as
-published.
+Double integrators, unicycles and the MPC keep appendix C's net displacement
+``‖p̂_k − p̂_{k−W}‖ ≤ Δp_min`` as the authors' release measures it
+(:class:`.recovery.GoalRotation`): on the path length left, a unicycle turning in place and
+a double integrator gathering speed read as stuck and recover when they should not
+(measured in docs/results/avoidance.md "One progress checker").
 """
 
 from __future__ import annotations
@@ -106,3 +107,45 @@ class ProgressChecker:
     def livelocks(self, stuck: np.ndarray) -> np.ndarray:
         """The ``stuck`` robots whose commanded speed averaged at least ``v_max / 2`` over the window."""
         return stuck & (self.speed.mean(axis=0) >= 0.5 * self.v_max)
+
+
+@dataclass
+class ParkedTest:
+    """Which robots look *parked* to their neighbours, from their estimates alone: the
+    progress test applied from outside, over a long window and with a wide radius.
+
+    A robot's estimate comes to rest when the still test of the yielding stage holds
+    (:class:`.yielding.StillTracker`); its running mean then becomes its *anchor*. While
+    its estimate stays within ``radius`` of the anchor it has made no progress anywhere,
+    and after ``steps`` such steps it counts as parked; it stops counting (and loses its
+    anchor) at the first estimate farther than ``radius`` from the anchor.
+
+    What it detects: a robot parked on its goal whose yields and returns (at most
+    ``max_aside`` from the goal) or jittering estimates move it about, which the still test
+    alone reads as a robot waiting to pass. What it guarantees: a robot is called parked
+    only after ``steps`` consecutive steps within ``radius`` of one point where it had come
+    to rest, so a robot on its way, or a blocked robot for the first ``steps`` steps after
+    it came to rest, is never called parked by this test; ``steps = 0`` switches it off.
+    """
+
+    anchor: np.ndarray
+    since: np.ndarray
+
+    @classmethod
+    def initial(cls, n: int, dim: int = 2) -> ParkedTest:
+        return cls(np.full((n, dim), np.nan), np.zeros(n, np.int64))
+
+    def observe(self, estimates: np.ndarray, rest: np.ndarray, mean: np.ndarray, radius: float, steps: int) -> np.ndarray:
+        """Update with this step's estimates (``rest``: the still test holds; ``mean``:
+        the running means) and return which robots count as parked ``(N,)``."""
+        if steps <= 0:
+            return np.zeros(len(estimates), bool)
+        anchored = np.isfinite(self.anchor[:, 0])
+        fresh = rest & ~anchored
+        self.anchor[fresh] = mean[fresh]
+        anchored |= fresh
+        gone = anchored & (np.linalg.norm(estimates - np.where(anchored[:, None], self.anchor, 0.0), axis=1) > radius)
+        self.anchor[gone], self.since[gone] = np.nan, 0
+        anchored &= ~gone
+        self.since = np.where(anchored, self.since + 1, 0)
+        return self.since >= steps
