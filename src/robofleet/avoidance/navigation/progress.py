@@ -24,17 +24,18 @@ as deadlocks (held in place); both start the same recovery.
 
 **What it detects and guarantees.** A driving robot that has not shortened its distance
 left by the threshold over a full window is flagged at that step; a robot whose ``L``
-shrinks by at least the threshold over every window is never flagged (the test is exact
-on the recorded values, no noise model enters). A flagged robot's window restarts, so it is
-flagged at most once per ``window`` steps and a recovery always has its full length; a
-window that is not full (the first ``window − 1`` steps, or after a restart) flags only
-sitting robots; nothing is flagged while ``enabled`` is off.
+shrinks by at least the threshold over every window, and that never sits, is never flagged
+(the test is exact on the recorded values, no noise model enters). A flagged robot's
+window restarts (the values before it are dropped), so its progress test cannot fire again
+within ``window`` steps; a window that is not full (the first ``window`` steps, or after
+a restart) flags only sitting robots; nothing is flagged while ``enabled`` is off. The
+pipeline does not mark recovering robots as driving, so a recovery runs its full length.
 
 Double integrators, unicycles and the MPC keep appendix C's net displacement
 ``‖p̂_k − p̂_{k−W}‖ ≤ Δp_min`` as the authors' release measures it
-(:class:`.recovery.GoalRotation`): on the path length left, a unicycle turning in place and
-a double integrator gathering speed read as stuck and recover when they should not
-(measured in docs/results/avoidance.md "One progress checker").
+(:class:`.recovery.GoalRotation`): on the path length left, a unicycle turning in place
+reads as stuck and the rotated goal turns it further, and double integrators took longer
+(docs/results/avoidance.md, "Measurements behind the navigation stages").
 """
 
 from __future__ import annotations
