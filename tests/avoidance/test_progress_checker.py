@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from robofleet.avoidance.navigation.progress import DeadlockParams, ParkedTest, ProgressChecker
-from robofleet.avoidance.navigation.yielding import HOLD, YIELD, ParkingState, YieldingParams, parking_targets
+from robofleet.avoidance.navigation.yielding import ParkingState, YieldingParams, parking_targets
 from robofleet.avoidance.safety_filter import RobotSafetyFilter
 
 
