@@ -70,11 +70,13 @@ Robot models
     the MPC, Sec. 5.4). 3-D cells are not filtered here.
 
 Deadlock memory (appendix C, in velocity form)
-    A filter cannot know the robot's goal, so progress is measured against what was
-    asked: over the last ``window`` steps a robot is *deadlocked* when it asked for at
-    least ``progress_fraction · v_max · window · Δt`` of motion and moved less than
-    ``progress_fraction`` of it along the directions it asked for, or when it asked to
-    move and the filter returned ``u = 0`` in a non-empty cell (it sits on the boundary).
+    The navigation's progress checker (:class:`~robofleet.avoidance.navigation.progress.ProgressChecker`):
+    a filter cannot know the robot's goal, so the way is the motion asked for, and the
+    distance left shrinks each step by the motion made along the asked direction. Over the
+    last ``window`` steps a robot that asked for at least ``progress_fraction · v_max ·
+    window · Δt`` of motion is *deadlocked* when it made less than that much progress along
+    the directions it asked for, or when it asked to move and the filter returned ``u = 0``
+    in a non-empty cell (it sits on the boundary).
     Recovery rotates the desired velocity clockwise by 90° (``R_z(−90°)``, the paper's
     goal rotation ``g_tmp = R_z(−90°)(g − p̂) + p̂`` written for a velocity) for
     ``recover_steps`` steps. The obstacle-vertex branch of appendix C needs the goal and
@@ -94,7 +96,7 @@ from ..core.config import ScenarioSource, load_spec
 from ..core.errors import ConfigError, short_repr
 from ..core.spec_blocks import is_convex
 from .cell import CellGeometry, Cells, cell_from_view
-from .navigation.progress import DeadlockParams
+from .navigation.progress import DeadlockParams, ProgressChecker
 from .obstacles import wall_planes
 from .projection import project_onto_cells
 from .separator import as_float_array, check_covariance, power_of_two_scale, scaled
@@ -181,19 +183,24 @@ def safe_velocities(estimates: np.ndarray, desired: np.ndarray, cells: Cells, v_
 # ---------------------------------------------------------------------------------------
 @dataclass
 class DeadlockMemory:
-    """Per-robot memory of the deadlock heuristic: rings of asked and achieved motion."""
+    """Per-robot memory of the deadlock heuristic: the progress checker on the motion made
+    along the asked directions, the ring of asked motion, and the recoveries."""
 
     params: DeadlockParams
+    checker: ProgressChecker
     asked: np.ndarray
-    made: np.ndarray
+    left: np.ndarray
     recover_left: np.ndarray
-    deadlocks: np.ndarray
-    step: int = 0
 
     @classmethod
     def initial(cls, params: DeadlockParams, n: int) -> DeadlockMemory:
         window = max(params.window, 1)
-        return cls(params, np.full((window, n), np.nan), np.full((window, n), np.nan), np.zeros(n, np.int64), np.zeros(n, np.int64))
+        return cls(params, ProgressChecker(params, n, 1.0, 1.0), np.full((window, n), np.nan), np.zeros(n), np.zeros(n, np.int64))
+
+    @property
+    def deadlocks(self) -> np.ndarray:
+        """Deadlock detections per robot so far."""
+        return self.checker.deadlocks
 
     def steer(self, desired: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The desired velocities to project: rotated by −90° for robots in recovery."""
@@ -205,22 +212,19 @@ class DeadlockMemory:
     def update(self, asked: np.ndarray, velocity: np.ndarray, empty: np.ndarray, v_max: np.ndarray, dt: float) -> np.ndarray:
         """Record one step (``asked``: the projected desired velocities) and return the
         robots newly detected in deadlock, whose recovery starts now."""
-        p = self.params
+        checker = self.checker
+        checker.v_max, checker.dt = v_max, dt
         asked_len = np.linalg.norm(asked, axis=1) * dt
         along = np.einsum("ij,ij->i", velocity, asked) * dt / np.maximum(asked_len / dt, 1e-300)
-        slot = self.step % len(self.asked)
-        self.asked[slot], self.made[slot] = asked_len, along
-        self.step += 1
+        self.asked[checker.step % len(self.asked)] = asked_len
+        self.left = self.left - along  # the distance left shrinks by the motion made along the asked direction
         normal = self.recover_left <= 0
         self.recover_left = np.maximum(self.recover_left - 1, 0)
-        full = np.all(np.isfinite(self.asked), axis=0)
-        total_asked, total_made = np.nansum(self.asked, axis=0), np.nansum(self.made, axis=0)
-        slow = full & (total_asked >= p.progress_fraction * v_max * len(self.asked) * dt) & (total_made < p.progress_fraction * total_asked)
+        driving = normal & np.all(np.isfinite(self.asked), axis=0) & (np.nansum(self.asked, axis=0) >= checker.threshold)
         sitting = (asked_len > 1e-9) & (np.linalg.norm(velocity, axis=1) * dt < 1e-9) & ~empty
-        stuck = (slow | sitting) & normal
-        self.asked[:, stuck], self.made[:, stuck] = np.nan, np.nan
-        self.recover_left[stuck] = p.recover_steps
-        self.deadlocks += stuck
+        stuck = checker.observe(self.left, driving | (sitting & normal), sitting)
+        self.asked[:, stuck] = np.nan
+        self.recover_left[stuck] = self.params.recover_steps
         return stuck
 
 

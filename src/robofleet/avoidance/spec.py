@@ -412,6 +412,8 @@ class YieldingSpec(SpecModel):
     still_radius: float = Field(YieldingParams.still_radius, gt=0)
     still_steps: int = Field(YieldingParams.still_steps, ge=2)
     return_steps: int = Field(YieldingParams.return_steps, ge=1)
+    parked_steps: int = Field(YieldingParams.parked_steps, ge=0)
+    press: float = Field(YieldingParams.press, ge=0)
 
 
 class RightHandSpec(SpecModel):

@@ -70,6 +70,13 @@ class YieldingParams:
         integrators, unicycles) use radius 0: holding still does not tell a parked
         neighbour from a blocked one there.
     return_steps: most steps a robot drives back to its goal before holding again.
+    parked_steps, press: a neighbour that came to rest (the still test) and has stayed
+        within ``max_aside + still_radius`` of that point for ``parked_steps`` steps counts
+        as parked (:class:`.progress.ParkedTest`), even while it steps aside or jitters,
+        unless its estimate lies within ``press`` [m] of the robot's: a blocked robot presses
+        against the parked one, at about the pair clearance 2β the cells keep (0.73 m at the
+        shipped σ = 0.1 m; ``press`` adds 1.5 σ√2 for the two estimates' noise).
+        ``parked_steps`` = 0 switches the test off.
     """
 
     enabled: bool = True
@@ -83,6 +90,8 @@ class YieldingParams:
     still_radius: float = 0.4
     still_steps: int = 50
     return_steps: int = 200
+    parked_steps: int = 150
+    press: float = 0.95
 
 
 @dataclass(frozen=True)

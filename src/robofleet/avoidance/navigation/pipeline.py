@@ -43,7 +43,7 @@ from .band import out_of_the_band
 from .detour import Detours
 from .goal import GoalChecker
 from .params import NavigationParams
-from .progress import DeadlockParams, livelocks, stalled_along_route
+from .progress import DeadlockParams, ProgressChecker
 from .recovery import NORMAL, GoalRotation, count_down, recovery_targets, start_recovery
 from .right_hand import turned_projection, turned_targets
 from .route import Route
@@ -62,7 +62,12 @@ PIPELINES: dict[str, tuple[str, ...]] = {
 and turn their projected target; double integrators turn the target before their braking
 rule projects it, and recover by goal rotation; differential-drive robots take neither
 the right-hand turn nor detours (their three-projection controller drives the turned arcs
-into the walls); the MPC (any model with ``controller: mpc``) runs appendix C's rotation
+into the walls). Single integrators find their stuck robots with the progress checker
+(:class:`.progress.ProgressChecker`, on the route's path length left), which the safety
+filter shares; double integrators and unicycles keep appendix C's net displacement
+(:class:`.recovery.GoalRotation`): on the path length left, unicycles turning in place and
+double integrators accelerating read as stuck (docs/results/avoidance.md "One progress
+checker"). The MPC (any model with ``controller: mpc``) runs appendix C's rotation
 inside its own controller and no navigation stage."""
 
 
@@ -118,11 +123,7 @@ class TeamNavigation:
     mode: np.ndarray = None
     mode_left: np.ndarray = None
     vertex: np.ndarray = None
-    history: np.ndarray = None
-    speed_history: np.ndarray = None
-    step_count: int = 0
-    deadlocks: np.ndarray = None
-    livelock_count: np.ndarray = None
+    progress: ProgressChecker = None
     fallback_steps: int = 0  # MPC robot-steps that fell back, and that were solved
     solve_steps: int = 0
     mpc_status: np.ndarray = None
@@ -131,11 +132,10 @@ class TeamNavigation:
     def __post_init__(self):
         self.stages = [STAGES.get((name, self.pipeline), STAGES.get(name)) for name in PIPELINES[self.pipeline]]
         self.mpc_status = np.full(self.n, MPC_NO_MPC, np.int8)
-        n, window = self.n, max(self.deadlock.window, 1)
+        n = self.n
         self.goal = GoalChecker.initial(n, self.tolerance)
         self.mode, self.mode_left, self.vertex = np.zeros(n, np.int8), np.zeros(n, np.int32), np.zeros((n, 2))
-        self.history, self.speed_history = np.full((window, n), np.nan), np.zeros((window, n))
-        self.deadlocks, self.livelock_count = np.zeros(n, np.int64), np.zeros(n, np.int64)
+        self.progress = ProgressChecker(self.deadlock, n, self.v_max, self.dt)
         if self.params.enabled and self.pipeline != "mpc":
             self.parking = ParkingState.initial(n)
         if self.pipeline in ("double_integrator", "unicycle"):
@@ -162,7 +162,12 @@ class TeamNavigation:
         """Deadlock detections per robot so far."""
         if self.pipeline == "mpc":
             return self.keeper.deadlocks
-        return self.rotation.deadlocks if self.rotation is not None else self.deadlocks
+        return self.rotation.deadlocks if self.rotation is not None else self.progress.deadlocks
+
+    @property
+    def livelock_count(self) -> np.ndarray:
+        """Of the deadlock detections, those classed as livelocks (single integrators)."""
+        return self.progress.livelock_count
 
     def command(self, p: np.ndarray, goals: np.ndarray, cells: Cells, state: np.ndarray | None = None) -> StepState:
         """One step of the pipeline from the estimates ``p``, the goals and the cells (and
@@ -246,25 +251,23 @@ def band_stage(t: TeamNavigation, s: StepState) -> None:
 
 
 def progress_stage(t: TeamNavigation, s: StepState) -> None:
-    """Which robots are stuck on their way (:func:`.progress.stalled_along_route`); their
-    recovery starts (the obstacle branch only without a route), and every recovery counts down."""
-    stuck = stalled_along_route(s.to_go, s.move_dist, t.history, t.step_count, ~t.arrived & (t.mode == NORMAL), t.v_max, t.dt,
-                                t.deadlock)
-    t.deadlocks += stuck
+    """Which robots are stuck on their way (:class:`.progress.ProgressChecker` on the path
+    length left); their recovery starts (the obstacle branch only without a route), and
+    every recovery counts down."""
+    sitting = s.move_dist < 1e-9  # projected target at the estimate (an empty cell passes inf)
+    stuck = t.progress.observe(s.to_go, ~t.arrived & (t.mode == NORMAL), sitting)
     if stuck.any():
-        t.livelock_count += livelocks(stuck, t.speed_history, t.v_max)
-    if t.deadlock.enabled and stuck.any():
         grown = t.grown if not (t.navigating and t.route is not None) else None  # the roadmap already routes around obstacles
         start_recovery(stuck, s.p, s.route_target, s.cells, s.proj.active, t.mode, t.mode_left, t.vertex, t.deadlock, grown)
     count_down(s.p, t.mode, t.mode_left, t.vertex, max(t.tolerance, float(np.max(t.v_max)) * t.dt))
-    t.step_count += 1
 
 
 # -- the cell-keeping controllers ---------------------------------------------------------
 def keep_single_integrator(t: TeamNavigation, s: StepState) -> None:
     """The one-step controller (appendix C): toward the projected target at most ``v_max``."""
     hold = t.arrived & ~s.moving
-    s.u, t.speed_history[t.step_count % len(t.speed_history)], s.move_dist = steer(s.p, s.proj, t.v_max, t.dt, hold)
+    s.u, speed, s.move_dist = steer(s.p, s.proj, t.v_max, t.dt, hold)
+    t.progress.record_speed(speed)
     s.empty = s.proj.empty
 
 

@@ -24,7 +24,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..cell import Cells, Kind
-from .progress import DeadlockParams, displacement_stalled
+from .progress import DeadlockParams
 
 NORMAL, ROTATE, VERTEX = 0, 1, 2
 CLOCKWISE_90 = np.array([[0.0, 1.0], [-1.0, 0.0]])  # R_z(−90°)
@@ -47,15 +47,17 @@ def start_recovery(stuck: np.ndarray, estimates: np.ndarray, goals: np.ndarray, 
                    grown: np.ndarray | None) -> None:
     """Start the recovery of the ``stuck`` robots (module docstring), in place on ``mode``,
     ``mode_left`` and ``vertex``; ``grown`` ``(O, V, 2)`` are the grown obstacles' vertices
-    (``None``: rotation only)."""
+    (``None``: rotation only; then ``cells`` and ``active`` are not read)."""
     rows = np.flatnonzero(stuck)
+    mode[rows] = ROTATE
+    mode_left[rows] = params.recover_steps
+    if grown is None:
+        return
     act = active[rows]
     kinds = np.where(act >= 0, cells.kind[rows[:, None], np.maximum(act, 0)], -1)
     sources = np.where(act >= 0, cells.source[rows[:, None], np.maximum(act, 0)], -1)
     on_obstacle = kinds == Kind.OBSTACLE
-    use_vertex = on_obstacle.any(axis=1) & (grown is not None)
-    mode[rows] = ROTATE
-    mode_left[rows] = params.recover_steps
+    use_vertex = on_obstacle.any(axis=1)
     if use_vertex.any():
         vr = rows[use_vertex]
         obstacle = sources[use_vertex][np.arange(use_vertex.sum()), np.argmax(on_obstacle[use_vertex], axis=1)]
@@ -88,8 +90,10 @@ class GoalRotation:
     """Appendix C detection and goal rotation for the models without the single
     integrators' memory (double integrators, unicycles, the MPC), vectorized over robots.
 
-    A robot that has not arrived is stuck when its (estimated) position moved less than
-    ``progress`` over the last ``window`` steps (:func:`.progress.displacement_stalled`);
+    A robot that has not arrived is stuck when its (estimated) position moved at most
+    ``progress`` (Δp_min) over the last ``window`` steps, the net displacement
+    ``‖p̂_k − p̂_{k−window}‖``, as in the authors' release; the navigated models use the
+    progress checker (:class:`.progress.ProgressChecker`) instead;
     for the next ``recover_steps`` steps it steers to ``g_tmp`` (Eq. (51)), then back to
     ``g``; it is not re-flagged within ``window`` steps.
     """
@@ -112,7 +116,7 @@ class GoalRotation:
         self.step_count += 1
         done = np.zeros(len(positions), bool) if arrived is None else arrived
         self._since += 1
-        stuck = displacement_stalled(moved, self.progress, self.step_count > self.window) & ~done
+        stuck = (self.step_count > self.window) & (moved <= self.progress) & ~done  # net displacement at most Δp_min
         stuck &= (self._left == 0) & (self._since > self.window)
         self._left[stuck] = self.recover_steps
         self._since[stuck] = 0

@@ -11,7 +11,10 @@ Rule (per robot, every step; :func:`parking_targets`):
 
 * a neighbour *lingers* when its estimate lies within ``near`` of the robot's and it does
   not hold still (:class:`StillTracker`: within ``still_radius`` of its running mean
-  ``m ← m + (2/still_steps)(p̂ − m)`` for ``still_steps`` steps: parked, most likely);
+  ``m ← m + (2/still_steps)(p̂ − m)`` for ``still_steps`` steps: parked, most likely), nor
+  rests (:class:`.progress.ParkedTest`: it has stayed within ``max_aside + still_radius``
+  of where it came to rest for ``parked_steps`` steps — a parked robot stepping aside or
+  back) farther than ``press`` away;
 * HOLD → YIELD once the leaky linger count reaches ``2^k · linger_steps`` after the
   robot's k-th yield; the target is ``g + aside · R(aside_turn) ā`` with ``ā`` the mean
   unit direction away from the lingering neighbours, pulled back to within ``max_aside``
@@ -36,6 +39,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from .params import YieldingParams
+from .progress import ParkedTest
 
 HOLD, YIELD, RETURN = 0, 1, 2
 
@@ -74,16 +78,21 @@ class ParkingState:
     target: np.ndarray
     yields: np.ndarray
     stillness: StillTracker  # what the neighbours see of each robot's estimate
+    resting: ParkedTest  # and whether it has stayed near where it came to rest
 
-    def observe(self, estimates: np.ndarray, params: YieldingParams) -> np.ndarray:
-        """Update what the neighbours see of each robot and return which robots look
-        parked: held still (:class:`StillTracker`) for ``still_steps`` steps."""
-        return self.stillness.observe(estimates, params.still_radius, params.still_steps) >= params.still_steps
+    def observe(self, estimates: np.ndarray, params: YieldingParams) -> tuple[np.ndarray, np.ndarray]:
+        """Update what the neighbours see of each robot and return which robots hold still
+        (:class:`StillTracker`: for ``still_steps`` steps) and which stayed where they came
+        to rest for ``parked_steps`` steps (:class:`.progress.ParkedTest`)."""
+        still = self.stillness.observe(estimates, params.still_radius, params.still_steps) >= params.still_steps
+        radius = params.max_aside + params.still_radius
+        return still, self.resting.observe(estimates, still, self.stillness.mean, radius, params.parked_steps)
 
     @classmethod
     def initial(cls, n: int, dim: int = 2) -> ParkingState:
         counters = [np.zeros(n, np.int32) for _ in range(3)]
-        return cls(np.zeros(n, np.int8), *counters, np.zeros((n, dim)), np.zeros(n, np.int64), StillTracker.initial(n, dim))
+        return cls(np.zeros(n, np.int8), *counters, np.zeros((n, dim)), np.zeros(n, np.int64), StillTracker.initial(n, dim),
+                   ParkedTest.initial(n, dim))
 
 
 def close_pairs(estimates: np.ndarray, near: float, local_box: float = np.inf) -> np.ndarray:
@@ -151,9 +160,10 @@ def parking_targets(estimates: np.ndarray, goals: np.ndarray, parked: np.ndarray
     tolerance:
         The goal tolerance: a returning robot holds once its estimate is this close.
     """
-    parked_like = state.observe(estimates, params)
+    still, resting = state.observe(estimates, params)
     pairs = close_pairs(estimates, params.near, local_box) if parked.any() else np.zeros((0, 2), np.int64)
-    pairs = pairs[~parked_like[pairs[:, 1]]]  # a neighbour that holds still is not waiting to pass
+    pressing = np.linalg.norm(estimates[pairs[:, 0]] - estimates[pairs[:, 1]], axis=1) <= params.press
+    pairs = pairs[~still[pairs[:, 1]] & (pressing | ~resting[pairs[:, 1]])]  # who holds still, or rests away, is not waiting to pass
     crowded = np.bincount(pairs[:, 0], minlength=len(estimates)) > 0
     state.mode[~parked] = HOLD
     state.mode_left -= state.mode != HOLD
