@@ -275,6 +275,22 @@ def threaded_loop(executor: PlanExecutor, seed: int, lookahead: int = 1, sleep: 
 
 
 # -- stalls -------------------------------------------------------------------------------------------
+def supervisor_deadlocked(sup: Supervisor) -> bool:
+    """Whether the supervisor's own state lets no robot move (under its lock): Eq. 1 on the
+    current labels at the known progress moves nobody while some robot is short of its
+    goal — Definition 1 on what the supervisor knows.
+
+    A robot whose known step lags its true one was granted the next column and Eq. 1
+    never takes a granted column back (known progress only grows; a flip or a plan
+    change never makes a robot wait in a column it may have reached), so when this holds
+    every robot is known where it truly is and the true state is a deadlock too; when it
+    does not, a robot that asks is told ``go`` to a step past its known one."""
+    with sup._lock:
+        state = sup.execution_state
+        waiting, moving, finished = state.rule.states(state.labels, sup.known)
+        return bool(not moving.any() and not finished.all())
+
+
 def waits_for(sup: Supervisor) -> list[dict]:
     """Who waits for whom now (under the supervisor's lock): per side of Eq. 1 that stops its
     waiter at the known progress, the waiter, the robot passing first, the step that one

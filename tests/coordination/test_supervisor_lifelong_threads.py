@@ -8,11 +8,13 @@ Changes race with reports and answers: a change read from a stale snapshot is re
 Checked at every move, under the world's lock: no two robots closer than ``2r`` at their
 true steps (on the plan of that moment), known progress never past the true one. After
 every change attempt, under the supervisor's lock, and at a stall: the active segment
-graph (exact resolution, on the known progress) holds no cycle. No run stalls: every thread goes
-quiet only when all robots are at their goals, and once the changes stop every run ends
-within a round budget. Every refused change is a one-line error; half the changes (a
-seeded coin) are made holding the supervisor's lock, and their refusals must leave
-plan, regions, labels and known progress as they were."""
+graph (exact resolution, on the known progress) holds no cycle. No run stalls: whenever
+every thread has gone quiet while a robot is short of its goal, the supervisor's own state
+still lets a robot move (a robot given a new plan after all had finished may not have
+asked yet), and once the changes stop every run ends within a round budget. Every
+refused change is a one-line error; half the changes (a seeded coin) are made holding
+the supervisor's lock, and their refusals must leave plan, regions, labels and known
+progress as they were."""
 
 from __future__ import annotations
 
@@ -22,10 +24,13 @@ import time
 
 import numpy as np
 import pytest
-from supervisor_loops import SleepySupervisor, contacts_at, executor_for, waits_for, wandering_instance
+from coordination_instances import line
+from supervisor_loops import (SleepySupervisor, contacts_at, executor_for, supervisor_deadlocked, waits_for,
+                             wandering_instance)
 from test_supervisor_lifelong import METHODS, TOLERANCE, CycleWatch, new_leg
 
 from robofleet.coordination import Supervisor
+from robofleet.coordination.trajectories import make_trajectories
 from robofleet.core.errors import ConfigError, InfeasibleError
 
 SLEEP = 2e-4
@@ -45,9 +50,14 @@ class LifelongWorld:
     """The robots' true progress on the supervisor's current plan, moved under a lock.
 
     Stalled: every robot thread has gone ``quiet_rounds`` rounds since the last move while
-    some robot is short of its goal, or the robot threads have made ``budget`` rounds in
-    all since the changes stopped. Over: stalled, or the changes have stopped and every
-    robot is at its goal."""
+    some robot is short of its goal *and* the supervisor's own state lets no robot move
+    (:func:`~supervisor_loops.supervisor_deadlocked`), or the robot threads have made
+    ``budget`` rounds in all since the changes stopped; once stalled, the run stays so.
+    Quiet rounds alone are no stall: when every robot has been at its goal for a while
+    and the appender then gives one a new plan, the other threads may make their next
+    rounds before that robot's thread asks for its answer. Such moments are counted
+    (``free_when_quiet``) and the quiet rounds start again. Over: stalled, or the changes
+    have stopped and every robot is at its goal."""
 
     def __init__(self, sup: Supervisor, budget: int, quiet_rounds: int = 40):
         self.sup, self.budget, self.quiet_rounds = sup, budget, quiet_rounds
@@ -57,7 +67,7 @@ class LifelongWorld:
         self.quiet = np.zeros(n, int)
         self.changers_left = 2
         self.rounds_after_changes = 0
-        self.contacts = self.overestimates = 0
+        self.contacts = self.overestimates = self.free_when_quiet = 0
         self.stalled = self.over = False
         self.error: str | None = None
 
@@ -73,9 +83,20 @@ class LifelongWorld:
             self.overestimates += int(np.count_nonzero(self.sup.known > self.x))
             self.rounds_after_changes += self.changers_left == 0
             finished = bool(np.all(self.x >= self.sup.traj.lengths))
-            self.stalled = bool(self.quiet.min() >= self.quiet_rounds and not finished) \
-                or self.rounds_after_changes > self.budget
+            self.stalled = self.stalled or self.rounds_after_changes > self.budget or self.quiet_and_stuck(finished)
             self.over = self.over or self.stalled or (self.changers_left == 0 and finished)
+
+    def quiet_and_stuck(self, finished: bool) -> bool:
+        """Every thread quiet for ``quiet_rounds`` rounds, a robot short of its goal, and the
+        supervisor lets no robot move (the world's lock is held; the supervisor's is
+        taken inside it, never the other way round)."""
+        if finished or self.quiet.min() < self.quiet_rounds:
+            return False
+        if supervisor_deadlocked(self.sup):
+            return True
+        self.free_when_quiet += 1
+        self.quiet[:] = 0
+        return False
 
     def changer_done(self) -> None:
         with self.lock:
@@ -182,7 +203,8 @@ def lifelong_threaded_run(seed: int, method: str, n: int = 4, appends: int = 5, 
         watch.check(sup)
         waits = dict(x=world.x.tolist(), known=sup.known.tolist(), lengths=sup.traj.lengths.tolist(), waits=waits_for(sup))
     return dict(counts, contacts=world.contacts, overestimates=world.overestimates, cycles=watch.cycles,
-                stalled=world.stalled, error=world.error, rounds_after_changes=world.rounds_after_changes, waits=waits)
+                stalled=world.stalled, free_when_quiet=world.free_when_quiet, error=world.error,
+                rounds_after_changes=world.rounds_after_changes, waits=waits)
 
 
 def threaded_runs(method: str, seeds) -> tuple[dict, list]:
@@ -193,7 +215,7 @@ def threaded_runs(method: str, seeds) -> tuple[dict, list]:
         totals["runs"] += 1
         if counts["error"] or counts["contacts"] or counts["overestimates"] or counts["cycles"] or counts["stalled"]:
             bad.append((seed, counts))
-        for key in ("appends", "cuts", "refused", "contacts", "overestimates", "cycles", "stalled"):
+        for key in ("appends", "cuts", "refused", "contacts", "overestimates", "cycles", "stalled", "free_when_quiet"):
             totals[key] = totals.get(key, 0) + int(counts[key])
         totals["most_rounds_after_changes"] = max(totals.get("most_rounds_after_changes", 0), counts["rounds_after_changes"])
     print(method, totals)
@@ -215,3 +237,32 @@ def test_plans_appended_and_cut_from_other_threads_never_collide_nor_stall_on_ma
     totals, bad = threaded_runs(method, range(6, 40))
     assert bad == []
     assert totals["appends"] >= 85 and totals["cuts"] >= 40
+
+
+def rounds(sup: Supervisor, world: LifelongWorld, robots) -> None:
+    """One round of each robot thread of ``robots``, in that order: report, ask, step."""
+    for i in robots:
+        sup.report(i, progress=int(world.x[i]))
+        answer = sup.answer(i)
+        world.step(i, answer.until if answer.go else -1, disturbed=False)
+
+
+def test_a_robot_given_a_new_plan_after_every_thread_went_quiet_is_no_stall():
+    # both robots at their goals for longer than the quiet rounds; the appender then gives
+    # robot 0 a new leg and robot 1's thread makes its round before robot 0's thread asks:
+    # every thread has been quiet and a robot is short of its goal, yet robot 0 is free
+    traj = make_trajectories([line((0, 0), (3, 0), 0.3), line((0, 4), (3, 4), 0.3)], 0.5, 0.1)
+    sup = Supervisor(traj, executor=executor_for(traj, "tfa"), lookahead=1)
+    world = LifelongWorld(sup, budget=BUDGET)
+    while not np.all(world.x >= sup.traj.lengths):
+        rounds(sup, world, (0, 1))
+    for _ in range(world.quiet_rounds):
+        rounds(sup, world, (0, 1))
+    assert world.quiet.min() >= world.quiet_rounds and not world.stalled
+    sup.append_plan(0, line((3, 0), (3, -3), 0.3))
+    rounds(sup, world, (1,))
+    assert not world.stalled and world.free_when_quiet == 1
+    assert not supervisor_deadlocked(sup) and sup.answer(0).go
+    while not np.all(world.x >= sup.traj.lengths):
+        rounds(sup, world, (0, 1))
+    assert not world.stalled
