@@ -26,7 +26,7 @@ from coordination_instances import _apart, line
 from robofleet.coordination import Supervisor
 from robofleet.coordination.coordination_space import build_coordination_space
 from robofleet.coordination.label_flipping import KnownProbabilities
-from robofleet.coordination.plan_execution import Method, PlanExecutor, Variant
+from robofleet.coordination.plan_execution import Decision, Method, PlanExecutor, Variant
 from robofleet.coordination.segment_graph import IncrementalCycleDetector, build_segment_layout
 from robofleet.coordination.trajectories import Trajectories, first_plan_collision, make_trajectories
 from robofleet.core.errors import InfeasibleError
@@ -309,23 +309,27 @@ def threaded_loop(executor: PlanExecutor, seed: int, lookahead: int = 1, sleep: 
 
 # -- stalls -------------------------------------------------------------------------------------------
 def supervisor_deadlocked(sup: Supervisor) -> bool:
-    """Whether the supervisor's own state lets no robot move (under its lock): Eq. 1 on the
-    current labels at the known progress moves nobody while some robot is short of its
-    goal — Definition 1 on what the supervisor knows.
+    """Whether the supervisor's own state lets no robot move (under its lock): no robot would
+    be answered ``go`` to a step past its known one while some robot is short of its goal.
+    The answers come from the cached decision while there is one (a decision kept after a
+    report that should have changed it shows here), else from Eq. 1 on the current labels
+    at the known progress (the flip round of the next decision may change which robot
+    moves, never whether one does: the flips keep the active segment graph acyclic, and
+    then Eq. 1 never stops every robot — Theorems 1–2) — Definition 1 on what it knows.
 
     Why the known progress is enough: a robot whose known step lags its true one stands
     within its grants, so the column after its known step was granted, and Eq. 1 never
     takes back a column a robot may have reached (the others' known progress only grows;
     a flip needs its new waiter's furthest possible step before the region; a plan change
     settles a region only with the waiter's columns up to that step clear). So when this
-    holds every robot is known where it truly is and the true state is a deadlock too.
-    When it does not, the next decision lets a robot move — perhaps another one, after a
-    flip: the flips keep the active segment graph acyclic, and then Eq. 1 never stops
-    every robot (Theorems 1–2)."""
+    holds every robot is known where it truly is and the true state is a deadlock too."""
     with sup._lock:
-        state = sup.execution_state
-        waiting, moving, finished = state.rule.states(state.labels, sup.known)
-        return bool(not moving.any() and not finished.all())
+        decision = sup._decision
+        if decision is None:
+            state = sup.execution_state
+            decision = Decision(*state.rule.states(state.labels, sup.known))
+        free = [i for i in np.flatnonzero(decision.moving).tolist() if sup.horizon(i) > sup.known[i]]
+        return not free and not bool(decision.finished.all())
 
 
 def waits_for(sup: Supervisor) -> list[dict]:
