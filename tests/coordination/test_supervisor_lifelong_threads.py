@@ -10,8 +10,8 @@ true steps (on the plan of that moment), known progress never past the true one.
 every change attempt, under the supervisor's lock, and at a stall: the active segment
 graph (exact resolution, on the known progress) holds no cycle. No run stalls: whenever
 every thread has gone quiet while a robot is short of its goal, the supervisor's own state
-still lets a robot move (a robot given a new plan after all had finished may not have
-asked yet), and once the changes stop every run ends within a round budget. Every
+still lets a robot move (:class:`~supervisor_loops.QuietRounds`: the freed robot's thread
+may not have asked yet), and once the changes stop every run ends within a round budget. Every
 refused change is a one-line error; half the changes (a seeded coin) are made holding
 the supervisor's lock, and their refusals must leave plan, regions, labels and known
 progress as they were."""
