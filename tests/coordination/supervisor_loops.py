@@ -26,7 +26,7 @@ from coordination_instances import _apart, line
 from robofleet.coordination import Supervisor
 from robofleet.coordination.coordination_space import build_coordination_space
 from robofleet.coordination.label_flipping import KnownProbabilities
-from robofleet.coordination.plan_execution import Method, PlanExecutor, Variant
+from robofleet.coordination.plan_execution import Decision, Method, PlanExecutor, Variant
 from robofleet.coordination.segment_graph import IncrementalCycleDetector, build_segment_layout
 from robofleet.coordination.trajectories import Trajectories, first_plan_collision, make_trajectories
 from robofleet.core.errors import InfeasibleError
@@ -211,27 +211,60 @@ def position_loop(executor: PlanExecutor, seed: int, tolerance: float, lookahead
 
 
 # -- threads ------------------------------------------------------------------------------------------
+class QuietRounds:
+    """Robot-thread rounds (report, ask, step) since the last move, and the stall rule on them.
+
+    Quiet rounds alone are no stall: a robot freed after its thread's last round — by the
+    report of a robot whose thread was starved between its move and that report, or by a
+    new plan given to a robot when all were at their goals — has not asked yet while the
+    other threads make their rounds. So a run stalls when every thread has gone
+    ``quiet_rounds`` rounds without a move, a robot is short of its goal and the
+    supervisor's own state lets no robot move (:func:`supervisor_deadlocked`); a quiet
+    moment with a free robot is counted (``free_when_quiet``) and the count starts again."""
+
+    def __init__(self, n_robots: int, quiet_rounds: int = 40):
+        self.rounds = np.zeros(n_robots, int)
+        self.quiet_rounds = quiet_rounds
+        self.free_when_quiet = 0
+
+    def count(self, i: int, moved: bool) -> None:
+        if moved:
+            self.rounds[:] = 0
+        else:
+            self.rounds[i] += 1
+
+    def stalled(self, sup: Supervisor, finished: bool) -> bool:
+        """The stall rule, called under the world's lock (the supervisor's lock is taken
+        inside it, never the other way round)."""
+        if finished or self.rounds.min() < self.quiet_rounds:
+            return False
+        if supervisor_deadlocked(sup):
+            return True
+        self.free_when_quiet += 1
+        self.rounds[:] = 0
+        return False
+
+
 class World:
     """The robots' true progress, moved under a lock; a run is over when every robot is at
-    its goal, or stalled when every thread has gone ``quiet_rounds`` rounds (report,
-    answer, move attempt) since the last move."""
+    its goal, or stalled (:class:`QuietRounds`; once stalled, the run stays so)."""
 
-    def __init__(self, traj: Trajectories, quiet_rounds: int = 40):
-        self.traj, self.lock, self.quiet_rounds = traj, threading.Lock(), quiet_rounds
-        self.x = np.zeros(traj.n_robots, np.intp)
-        self.quiet = np.zeros(traj.n_robots, int)
+    def __init__(self, sup: Supervisor, quiet_rounds: int = 40):
+        self.sup, self.traj, self.lock = sup, sup.traj, threading.Lock()
+        self.x = np.zeros(self.traj.n_robots, np.intp)
+        self.quiet = QuietRounds(self.traj.n_robots, quiet_rounds)
         self.contacts, self.stalled, self.over, self.error = 0, False, False, None
 
     def step(self, i: int, until: int, disturbed: bool) -> None:
         with self.lock:
-            if self.x[i] < until and not disturbed:
+            moved = bool(self.x[i] < until and not disturbed)
+            if moved:
                 self.x[i] += 1
-                self.quiet[:] = 0
                 self.contacts += contacts_at(self.traj, self.x)
-            else:
-                self.quiet[i] += 1
-            self.stalled = bool(self.quiet.min() >= self.quiet_rounds)
-            self.over = self.over or self.stalled or bool(np.all(self.x >= self.traj.lengths))
+            self.quiet.count(i, moved)
+            finished = bool(np.all(self.x >= self.traj.lengths))
+            self.stalled = self.stalled or self.quiet.stalled(self.sup, finished)
+            self.over = self.over or self.stalled or finished
 
 
 class SleepySupervisor(Supervisor):
@@ -253,8 +286,8 @@ def threaded_loop(executor: PlanExecutor, seed: int, lookahead: int = 1, sleep: 
     """Every robot driven by its own thread: report its progress, (random sleep) ask for its
     answer, try one step (disturbed with the plan's probability); all random draws seeded."""
     traj = executor.traj
-    world = World(traj)
     sup = SleepySupervisor(traj, executor=executor, lookahead=lookahead, sleep=sleep, seed=seed)
+    world = World(sup)
 
     def drive(i: int, rng: np.random.Generator) -> None:
         try:
@@ -275,6 +308,30 @@ def threaded_loop(executor: PlanExecutor, seed: int, lookahead: int = 1, sleep: 
 
 
 # -- stalls -------------------------------------------------------------------------------------------
+def supervisor_deadlocked(sup: Supervisor) -> bool:
+    """Whether the supervisor's own state lets no robot move (under its lock): no robot would
+    be answered ``go`` to a step past its known one while some robot is short of its goal.
+    The answers come from the cached decision while there is one (a decision kept after a
+    report that should have changed it shows here), else from Eq. 1 on the current labels
+    at the known progress (the flip round of the next decision may change which robot
+    moves, never whether one does: the flips keep the active segment graph acyclic, and
+    then Eq. 1 never stops every robot — Theorems 1–2) — Definition 1 on what it knows.
+
+    Why the known progress is enough: a robot whose known step lags its true one stands
+    within its grants, so the column after its known step was granted, and Eq. 1 never
+    takes back a column a robot may have reached (the others' known progress only grows;
+    a flip needs its new waiter's furthest possible step before the region; a plan change
+    settles a region only with the waiter's columns up to that step clear). So when this
+    holds every robot is known where it truly is and the true state is a deadlock too."""
+    with sup._lock:
+        decision = sup._decision
+        if decision is None:
+            state = sup.execution_state
+            decision = Decision(*state.rule.states(state.labels, sup.known))
+        free = [i for i in np.flatnonzero(decision.moving).tolist() if sup.horizon(i) > sup.known[i]]
+        return not free and not bool(decision.finished.all())
+
+
 def waits_for(sup: Supervisor) -> list[dict]:
     """Who waits for whom now (under the supervisor's lock): per side of Eq. 1 that stops its
     waiter at the known progress, the waiter, the robot passing first, the step that one
