@@ -112,7 +112,7 @@ class RobotMaps:
         return _frontier_empty(self.layers, self.unchecked, self.open)
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline="always")
 def set_bit(layers, touched, dirty, unchecked, layer, robot, vertex):
     """OR the bit of ``vertex`` into row ``robot`` of ``layer``; mark its block changed."""
     layers[robot, layer, vertex >> 6] |= np.uint64(1) << np.uint64(vertex & 63)
@@ -160,7 +160,9 @@ def _exchange(layers, touched, dirty, unchecked, receivers, senders, fresh, targ
         flags = touched[j] if fresh[e] else dirty[j]
         for b in range(n_blocks):
             if flags[b]:
-                message[c] = layers[j, :, b * BLOCK_WORDS:(b + 1) * BLOCK_WORDS]
+                for layer in range(LAYERS):  # element by element: no broadcasting machinery to compile
+                    for w in range(BLOCK_WORDS):
+                        message[c, layer, w] = layers[j, layer, b * BLOCK_WORDS + w]
                 dest[c], block[c] = receivers[e], b
                 c += 1
     heard = targets[senders].copy()

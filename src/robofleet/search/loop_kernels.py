@@ -49,6 +49,11 @@ FAILURE, FAILURE_DETECTED, TARGET_FOUND, STOP, OBSTACLE_COLLISION, COLLISION = r
 SMALL_TEAM = 32
 """Teams up to this size check a move for collisions pair by pair before sorting."""
 EVENT = types.Tuple((types.int64, types.int64, types.int64, types.int64, types.int64, types.float64))
+glue = numba.njit(cache=True, inline="always")
+"""The phases below are inlined into :func:`run_steps` at numba's level (one compiled
+function, whose call sites pass one set of argument types), rather than compiled each on
+its own: a separately compiled callee is linked into, optimized and emitted again with
+every caller up the tree, and the tuples of arrays they share make each copy large."""
 
 
 class LoopTables(NamedTuple):
@@ -160,7 +165,7 @@ def relation(pts, n, alive, rc2, rso2, cell, reach2):
     return start, peer, link, sensed, owner, near
 
 
-@numba.njit(cache=True)
+@glue
 def current_relation(t, p, s):
     """The relation at the robots' current vertices (empty for single robots)."""
     N = len(s.pos)
@@ -173,20 +178,20 @@ def current_relation(t, p, s):
     return np.zeros(N + 1, np.int64), none, empty, empty, none, empty
 
 
-@numba.njit(cache=True)
+@glue
 def set_bits(s, layer, robot, vertex):
     """One bit of ``layer`` in ``robot``'s map (:func:`.knowledge.set_bit`)."""
     set_bit(s.layers, s.touched, s.dirty, s.unchecked, layer, robot, vertex)
 
 
-@numba.njit(cache=True)
+@glue
 def test_bit(s, layer, robot, vertex):
     """Whether ``robot``'s map holds ``vertex`` in ``layer``."""
     return (s.layers[robot, layer, vertex >> 6] >> np.uint64(vertex & 63)) & np.uint64(1) != 0
 
 
 # -- observe: failures, steps 1-3, 7, 8 ---------------------------------------------------------
-@numba.njit(cache=True)
+@glue
 def fail_robots(t, p, s, step, events):
     """Failure injection: a robot whose failure step is reached stops for good."""
     for r in range(len(s.alive)):
@@ -198,7 +203,7 @@ def fail_robots(t, p, s, step, events):
         s.active[r] = s.alive[r] and not s.stopped[r] and s.running[r // p.n]
 
 
-@numba.njit(cache=True)
+@glue
 def detect_failures(p, s, step, rel, events):
     """Step 3 failure information: live robots near a silent robot block its vertex (and,
     in situation 2, hold it visited); a watcher that did not know it records the event."""
@@ -222,7 +227,7 @@ def detect_failures(p, s, step, rel, events):
                 set_bits(s, 0, owner[e], s.pos[peer[e]])
 
 
-@numba.njit(cache=True)
+@glue
 def exchange_maps(s, rel, last_links):
     """Step 3 map exchange over the links (:meth:`.knowledge.RobotMaps.exchange`); returns
     the links, the next exchange's ``last_links``."""
@@ -245,7 +250,7 @@ def exchange_maps(s, rel, last_links):
     return keys
 
 
-@numba.njit(cache=True)
+@glue
 def stop_received(p, s, own):
     """Step 8: the active robots that a stop broadcast by the robots ``own`` ends.
 
@@ -269,7 +274,7 @@ def stop_received(p, s, own):
     return heard
 
 
-@numba.njit(cache=True)
+@glue
 def stop_robots(p, s, step, events):
     """Steps 7–8: rules (3)/(4) on each active robot's own map, the stop broadcasts, and the
     runs that end (every working robot stopped); updates ``active``."""
@@ -304,7 +309,7 @@ def stop_robots(p, s, step, events):
         s.active[r] = s.alive[r] and not s.stopped[r] and s.running[r // n]
 
 
-@numba.njit(cache=True)
+@glue
 def observe(t, p, s, step, last_links, events):
     """Failures, steps 1–3 and the stop check of steps 7–8 at ``step``; returns the links
     for the next exchange and the neighbour relation for the next choice."""
@@ -327,7 +332,7 @@ def observe(t, p, s, step, last_links, events):
 
 
 # -- choose: steps 4-5 ----------------------------------------------------------------------------
-@numba.njit(cache=True)
+@glue
 def levy_flights(t, p, s, robots, u, z, flight):
     """LFP: robots whose flight is spent draw a new one (length from ``flight``, Mantegna's
     step length as numpy computed it; a turn of ``turn_sigma · z₂``, or a uniform heading
@@ -344,7 +349,7 @@ def levy_flights(t, p, s, robots, u, z, flight):
     return first
 
 
-@numba.njit(cache=True)
+@glue
 def choose(t, p, s, rel, u, z, flight):
     """Steps 4–5 of every active robot: ``(choice (N,), rounds per run (R,))``."""
     start, peer, link, sensed, owner, near = rel
@@ -374,7 +379,7 @@ def choose(t, p, s, rel, u, z, flight):
 
 
 # -- move: step 6 -----------------------------------------------------------------------------------
-@numba.njit(cache=True)
+@glue
 def bump_obstacles(t, p, s, step, choice, events):
     """Robots that take an edge blocked by an unsensed obstacle touch it and stay; they
     learn the vertex blocked; each touch is counted and recorded as an event."""
@@ -397,7 +402,7 @@ def bump_obstacles(t, p, s, step, choice, events):
             choice[i] = s.pos[i]
 
 
-@numba.njit(cache=True)
+@glue
 def count_collisions(p, s, step, choice, events):
     """Collisions of the move per run (observer side), each recorded as an event."""
     R, n = len(s.running), p.n
@@ -416,13 +421,13 @@ def count_collisions(p, s, step, choice, events):
     return per_run
 
 
-@numba.njit(cache=True)
+@glue
 def heading_change(old, new):
     """Smallest absolute angle between two headings (:func:`.timing.heading_change`)."""
     return abs((new - old + np.pi) % (2 * np.pi) - np.pi)
 
 
-@numba.njit(cache=True)
+@glue
 def advance_turning_clocks(t, p, s, choice, rounds, per_run):
     """Trapezoidal rotation: each running run's clock advances by its choice rounds, its
     collision penalties and its slowest robot's turn and translation."""
@@ -455,7 +460,7 @@ def advance_turning_clocks(t, p, s, choice, rounds, per_run):
             s.rounds[r] += rounds[r]
 
 
-@numba.njit(cache=True)
+@glue
 def move(t, p, s, step, choice, rounds, events):
     """Step 6: bump into unsensed obstacles, count collisions, advance the clocks, move."""
     if not p.exact:
@@ -493,18 +498,21 @@ def run_steps(t, p, s, first, stop, last_links, u, z, flight, column):
     vertices = np.empty((m + 1 if p.record else 0, len(s.pos)), np.int64)
     clock = np.empty(m + 1 if p.record else 0)
     k = first
-    if first == 0:
-        last_links, rel = observe(t, p, s, 0, last_links, events)
-    else:
-        rel = current_relation(t, p, s)
-    while k < stop and s.running.any():
+    observing = first == 0
+    while True:
+        if observing:
+            last_links, rel = observe(t, p, s, k, last_links, events)
+        else:
+            rel = current_relation(t, p, s)
+        if k >= stop or not s.running.any():
+            break
         c = k - first
         choice, rounds = choose(t, p, s, rel, u[:, column + c], z[:, column + c], flight[:, column + c])
         move(t, p, s, k, choice, rounds, events)
         if p.record:
             vertices[c + 1] = s.pos
             clock[c + 1] = s.time[0]
-        last_links, rel = observe(t, p, s, k + 1, last_links, events)
         k += 1
+        observing = True
     ints, times = event_rows(events)
     return k - first, last_links, ints, times, vertices, clock

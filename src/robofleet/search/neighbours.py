@@ -110,7 +110,7 @@ def _pairs_within(pts, n, h, r2):
     key = ((np.arange(N) // n) * cols + cx + 1) * rows + cy + 1
     order = np.argsort(key, kind="mergesort")
     sorted_key = key[order]
-    count = 0
+    count = np.int64(0)  # typed from the start: _sort_segment is compiled for int64 only
     for i in range(N):
         for dx in range(-1, 2):
             k = key[i] + dx * rows

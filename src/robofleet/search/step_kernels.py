@@ -28,7 +28,7 @@ from .knowledge import set_bit
 from .neighbours import longest_waiting_chain
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline="always")
 def robot_options(i, here, cand, words, masks, sensed_ok, layers, start, peer, aware, link, pos, choice, decided,
                   check_peers, options, unvisited):
     """Options ``N_s,i(k)`` of robot ``i`` on ``here`` into ``options (k,)`` and ``unvisited (k,)``;
@@ -48,7 +48,7 @@ def robot_options(i, here, cand, words, masks, sensed_ok, layers, start, peer, a
     return n_unvisited
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline="always")
 def pick_slot(pool, u):
     """Slot ``⌊u · |pool|⌋`` among the true entries of ``pool`` (``-1`` if none): the uniform
     choice "with prob. ``1/|V|``" of rules (1) and (2) (as :func:`.policy.pick_uniform`)."""
@@ -66,7 +66,7 @@ def pick_slot(pool, u):
     return -1
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline="always")
 def keep_farthest(i, here, cand, points, start, peer, link, pos, choice, decided, pool):
     """Rule (2) on ``pool``: keep the options at maximum distance from ``p_i,ave(k)``, the mean of
     the linked peers' choices (those that chose) or positions (the others), as
