@@ -8,8 +8,7 @@ STAMP  := $(VENV)/.installed
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
-	$(BIN)/python -m pip install --quiet --upgrade pip
-	$(BIN)/python -m pip install --quiet -e ".[all]"
+	$(BIN)/python -m pip install --quiet --disable-pip-version-check --no-compile -e ".[all]"
 	touch $(STAMP)
 
 install: $(STAMP)
@@ -17,12 +16,16 @@ install: $(STAMP)
 demo: $(STAMP)
 	MPLBACKEND=Agg $(BIN)/robofleet run scenarios/avoidance/circle_swap.yaml --seed 1 --out runs/demo --overwrite --animate
 
+# two workers; each takes the next test (or the next file of tests sharing a fixture) when
+# it is free, in the order tests/conftest.py gives: the long tests first
+PYTEST := MPLBACKEND=Agg $(BIN)/python -m pytest -n 2 --dist loadgroup --no-loadscope-reorder -q
+
 check: $(STAMP)
-	MPLBACKEND=Agg $(BIN)/python -m pytest -n 2 -q -m "not slow and not extended"
+	$(PYTEST) -m "not slow and not extended"
 
 test: $(STAMP)
 	@command -v chromium >/dev/null || echo "note: no chromium on PATH: the browser tests of the replay pages (tests/viz) are skipped (apt-get install chromium)"
-	MPLBACKEND=Agg $(BIN)/python -m pytest -n 2 -q
+	$(PYTEST)
 
 docs: $(STAMP)
 	MPLBACKEND=Agg $(BIN)/python -m sphinx -W --keep-going -q -b html docs docs/_build/html

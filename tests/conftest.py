@@ -57,13 +57,37 @@ EXTENDED = (
 ``make test`` runs them."""
 
 
+SHARED_SCOPES = ("class", "module", "package")
+"""Fixture scopes whose value the tests of one file (or folder) share."""
+
+
+def shared_fixture_home(item) -> str | None:
+    """Where a shared fixture ``item`` asks for is defined (its file or folder), or ``None``
+    when it uses none: the tests sharing such a fixture (a simulated run, a Dask cluster, a
+    built wheel, ...) run on one worker, which builds it once. Fixtures every test of a
+    file gets without asking (``autouse``: settings of the environment) do not count."""
+    homes = sorted(
+        definitions[-1].baseid
+        for definitions in item._fixtureinfo.name2fixturedefs.values()
+        if definitions and definitions[-1].scope in SHARED_SCOPES and not getattr(definitions[-1], "_autouse", False)
+    )
+    return homes[0] if homes else None
+
+
+@pytest.hookimpl(tryfirst=True)
 def pytest_collection_modifyitems(config, items):
-    """Mark the :data:`EXTENDED` tests; put the long tests (marked ``slow``) first: the
-    workers of ``pytest -n 2`` start them at once and share the short ones after, instead
-    of ending the run waiting on one of them."""
+    """Mark the :data:`EXTENDED` tests; keep the tests that share a file's fixture on one
+    worker (``xdist_group``, for ``--dist loadgroup``); put the long tests first, the
+    ``slow`` ones, then the ``extended`` ones: with ``--dist loadgroup
+    --no-loadscope-reorder`` (the Makefile) each worker takes the next test when it is
+    free, so the longest start at once and the short ones fill the end, instead of the
+    run ending on one worker still busy with a long test."""
     tests = Path(__file__).parent
     for item in items:
         where = item.path.relative_to(tests).as_posix() if item.path.is_relative_to(tests) else ""
         if where.startswith(EXTENDED):
             item.add_marker(pytest.mark.extended)
-    items.sort(key=lambda item: item.get_closest_marker("slow") is None)
+        home = shared_fixture_home(item)
+        if home is not None:
+            item.add_marker(pytest.mark.xdist_group(home))
+    items.sort(key=lambda item: (item.get_closest_marker("slow") is None, item.get_closest_marker("extended") is None))

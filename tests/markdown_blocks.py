@@ -1,8 +1,8 @@
 """Run the code blocks of a Markdown page as a reader would: shared by the README and docs tests.
 
 ``python`` blocks run in one namespace per page, ``sh`` blocks one command per line (the
-``robofleet`` and ``python`` commands through this interpreter, ``make TARGET`` as a dry
-run of that target), YAML blocks with a ``family`` key are loaded as scenarios; blocks in
+``robofleet`` commands through the command line's entry point in this process, ``python``
+commands through this interpreter, ``make TARGET`` as a dry run of that target), YAML blocks with a ``family`` key are loaded as scenarios; blocks in
 any other language (``text``, none) are illustrations and are not run. Blocks run in page
 order in one working directory where the checkout's ``scenarios/``, ``sweeps/`` and
 ``examples/`` are visible, so a later block may read what an earlier one wrote.
@@ -10,6 +10,8 @@ order in one working directory where the checkout's ``scenarios/``, ``sweeps/`` 
 
 from __future__ import annotations
 
+import contextlib
+import io
 import os
 import re
 import shlex
@@ -67,6 +69,31 @@ def run_command(argv: list[str], workdir: Path) -> subprocess.CompletedProcess:
     return subprocess.run(argv, cwd=workdir, capture_output=True, text=True, env=env, timeout=600)
 
 
+def run_robofleet(argv: list[str]) -> tuple[int, str]:
+    """``robofleet ARGS`` as a reader types it, through the command line's entry point in
+    this process (the libraries every command loads are loaded once per test process, not
+    once per command): its exit status and standard error. An error the command line does
+    not turn into its one-line message propagates (a reader would see a traceback)."""
+    from robofleet.cli.main import main
+
+    err = io.StringIO()
+    with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(err):
+        try:
+            main(argv[1:])
+            code = 0
+        except SystemExit as exc:
+            code = exc.code if isinstance(exc.code, int) else int(exc.code is not None)
+    return code, err.getvalue()
+
+
+def run_shell_command(argv: list[str], workdir: Path) -> tuple[int, str]:
+    """One command of a shell block: exit status and standard error."""
+    if argv[0] == "robofleet":
+        return run_robofleet(argv)
+    result = run_command(argv, workdir)
+    return result.returncode, result.stderr
+
+
 def check_ros2_file(data: object, body: str, workdir: Path) -> bool:
     """Read a ROS 2 launch file or a filter's ``ros__parameters`` file as robofleet would;
     whether ``data`` was one."""
@@ -99,9 +126,9 @@ def run_page(path: Path, workdir: Path) -> int:
                 exec(compile(body, f"{path.name}: python block", "exec"), namespace)
             elif lang == "sh":
                 for argv in commands(body):
-                    result = run_command(argv, workdir)
-                    assert result.returncode == 0, f"{path.name}: `{shlex.join(argv)}` exited {result.returncode}: {result.stderr[-2000:]}"
-                    assert "Traceback" not in result.stderr, f"{path.name}: `{shlex.join(argv)}`: {result.stderr[-2000:]}"
+                    code, stderr = run_shell_command(argv, workdir)
+                    assert code == 0, f"{path.name}: `{shlex.join(argv)}` exited {code}: {stderr[-2000:]}"
+                    assert "Traceback" not in stderr, f"{path.name}: `{shlex.join(argv)}`: {stderr[-2000:]}"
             else:
                 data = yaml.safe_load(body)
                 if isinstance(data, dict) and "family" in data:

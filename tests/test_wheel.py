@@ -29,7 +29,8 @@ def wheel_venv(tmp_path_factory):
     (wheel,) = (base / "dist").glob("robofleet-*.whl")
     venv = base / "venv"
     run(getattr(sys, "_base_executable", sys.executable), "-m", "venv", venv, cwd=base)
-    run(venv / "bin" / "python", "-m", "pip", "install", "--quiet", wheel, cwd=base)
+    # no byte-compiling of every installed file: the runs below compile what they import
+    run(venv / "bin" / "python", "-m", "pip", "install", "--quiet", "--disable-pip-version-check", "--no-compile", wheel, cwd=base)
     return venv
 
 
