@@ -5,8 +5,8 @@ of a step is a few microseconds of work, so a loop that returns to Python betwee
 phases spends most of its time in the calls. :func:`run_steps` runs the loop of
 :class:`~robofleet.search.simulation.SearchBatch` — choose (steps 4–5), move (step 6),
 observe (failures, steps 1–3, 7 and 8) — for a block of steps without leaving compiled
-code, calling the per-phase kernels of :mod:`.step_kernels`, :mod:`.knowledge` and
-:mod:`.neighbours`:
+code, calling the per-phase kernels of :mod:`robofleet.search.step_kernels`, :mod:`robofleet.search.knowledge` and
+:mod:`robofleet.search.neighbours`:
 
 * the random draws come from the robots' own streams
   (:class:`~robofleet.search.policy.RobotStreams`), drawn a block of
