@@ -30,8 +30,9 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def measure(sample: int, draw: int, repeat: int) -> dict:
-    """Best CPU ms per run of ``repeat`` passes over the sample, in this process."""
+def sampled_runs(sample: int, draw: int) -> list[tuple[object, int]]:
+    """``sample`` runs of the Fig. 7 sweep drawn with seed ``draw``: (validated scenario,
+    seed) pairs, each scenario simulated once first so that its kernels are loaded."""
     import random
 
     from robofleet import load_scenario, simulate
@@ -45,7 +46,14 @@ def measure(sample: int, draw: int, repeat: int) -> dict:
         if key not in specs:
             specs[key] = load_scenario("search/fig7", overrides={"algorithm": key[0], "robots.count": key[1]})
             simulate(specs[key], seed=0).summary()
-    runs = [(specs[(t["algorithm"], t["robots.count"])], t["seed"]) for t in tasks]
+    return [(specs[(t["algorithm"], t["robots.count"])], t["seed"]) for t in tasks]
+
+
+def measure(sample: int, draw: int, repeat: int) -> dict:
+    """Best CPU ms per run of ``repeat`` passes over the sample, in this process."""
+    from robofleet import simulate
+
+    runs = sampled_runs(sample, draw)
     passes, steps = [], 0
     for _ in range(repeat):
         start = time.process_time()
@@ -57,20 +65,9 @@ def measure(sample: int, draw: int, repeat: int) -> dict:
 def breakdown(sample: int, draw: int) -> dict[str, float]:
     """CPU µs per run of each part of ``simulate`` (this tree's functions, called as
     ``simulate`` calls them), over the same sample; the best of two passes per part."""
-    import random
-
-    from robofleet import load_scenario
-    from robofleet.experiments import plan_sweep
     from robofleet.search import simulation as sim
 
-    random.seed(draw)
-    tasks = random.sample(plan_sweep("search_fig7").tasks, sample)
-    specs = {}
-    for task in tasks:
-        key = (task["algorithm"], task["robots.count"])
-        if key not in specs:
-            specs[key] = load_scenario("search/fig7", overrides={"algorithm": key[0], "robots.count": key[1]})
-            sim.simulate(specs[key], seed=0)
+    runs = sampled_runs(sample, draw)
     best: dict[str, float] = {}
     for _ in range(2):
         spent: dict[str, float] = {}
@@ -80,8 +77,7 @@ def breakdown(sample: int, draw: int) -> dict[str, float]:
             spent[name] = spent.get(name, 0.0) + now - since
             return now
 
-        for task in tasks:
-            spec, seed = specs[(task["algorithm"], task["robots.count"])], task["seed"]
+        for spec, seed in runs:
             t = time.process_time()
             problem = sim.build_problem(spec, seed)
             t = part("problem: start vertices, failures", t)
@@ -105,7 +101,7 @@ def breakdown(sample: int, draw: int) -> dict[str, float]:
             trace.summary()
             part("summary", t)
         for name, seconds in spent.items():
-            best[name] = min(best.get(name, float("inf")), seconds / len(tasks) * 1e6)
+            best[name] = min(best.get(name, float("inf")), seconds / len(runs) * 1e6)
     return best
 
 

@@ -18,7 +18,6 @@ progress as they were."""
 
 from __future__ import annotations
 
-import sys
 import threading
 import time
 
@@ -36,14 +35,6 @@ from robofleet.core.errors import ConfigError, InfeasibleError
 SLEEP = 2e-4
 BUDGET = 20_000
 """Robot-thread rounds in all, once the changes have stopped, within which every run must end."""
-
-
-@pytest.fixture
-def fast_thread_switches():
-    interval = sys.getswitchinterval()
-    sys.setswitchinterval(1e-5)
-    yield
-    sys.setswitchinterval(interval)
 
 
 class LifelongWorld:

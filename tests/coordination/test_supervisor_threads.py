@@ -7,7 +7,6 @@ every thread quiet while the supervisor lets no robot move), none collides, none
 
 from __future__ import annotations
 
-import sys
 
 import numpy as np
 import pytest
@@ -15,14 +14,6 @@ from coordination_instances import random_instance
 from supervisor_loops import World, crossing_instance, executor_for, threaded_loop
 
 from robofleet.coordination import Supervisor
-
-
-@pytest.fixture
-def fast_thread_switches():
-    interval = sys.getswitchinterval()
-    sys.setswitchinterval(1e-5)
-    yield
-    sys.setswitchinterval(interval)
 
 
 def outcome(world) -> tuple:
