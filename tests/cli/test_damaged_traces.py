@@ -196,21 +196,26 @@ def assert_one_line_naming(message: str, file: Path, field: str) -> None:
     assert str(file) in message and field in message, (message, file, field)
 
 
+def assert_refused_in_one_line(run, name: str, file: str, field: str, capsys) -> None:
+    """``Trace.load`` and ``robofleet view`` refuse the damaged ``run`` in one line (status 2
+    for the command) naming the damaged file and field."""
+    with pytest.raises(TraceError) as info:
+        Trace.load(run)
+    assert_one_line_naming(str(info.value), run / file, field)
+    with pytest.raises(SystemExit) as stop:
+        main(["view", str(run), "--no-open"])
+    err = capsys.readouterr().err
+    assert stop.value.code == 2, (name, err)
+    assert err.count("\n") == 1 and err.startswith("error: "), (name, err)
+    assert_one_line_naming(err.strip(), run / file, field)
+
+
 @pytest.mark.parametrize("family", list(RUNS))
 def test_every_damage_is_one_line_from_trace_load_and_from_view(family, saved, tmp_path, capsys):
     damages = damages_of(saved[family])
     assert len(damages) > 40
     for index, (name, (file, field, damage)) in enumerate(damages.items()):
-        run = damaged_copy(saved[family], tmp_path / str(index), damage)
-        with pytest.raises(TraceError) as info:
-            Trace.load(run)
-        assert_one_line_naming(str(info.value), run / file, field)
-        with pytest.raises(SystemExit) as stop:
-            main(["view", str(run), "--no-open"])
-        err = capsys.readouterr().err
-        assert stop.value.code == 2, (name, err)
-        assert err.count("\n") == 1 and err.startswith("error: "), (name, err)
-        assert_one_line_naming(err.strip(), run / file, field)
+        assert_refused_in_one_line(damaged_copy(saved[family], tmp_path / str(index), damage), name, file, field, capsys)
 
 
 @pytest.mark.parametrize("family", list(RUNS))
@@ -219,15 +224,7 @@ def test_every_event_damage_of_a_version_3_trace_is_one_line(family, saved, tmp_
     loaded = Trace.load(old)
     assert json.loads((old / "trace.json").read_text())["version"] == 3 and loaded.events == Trace.load(saved[family]).events
     for index, (name, (file, field, damage)) in enumerate(event_damages_of_version_3(old).items()):
-        run = damaged_copy(old, tmp_path / str(index), damage)
-        with pytest.raises(TraceError) as info:
-            Trace.load(run)
-        assert_one_line_naming(str(info.value), run / file, field)
-        with pytest.raises(SystemExit) as stop:
-            main(["view", str(run), "--no-open"])
-        err = capsys.readouterr().err
-        assert stop.value.code == 2 and err.count("\n") == 1, (name, err)
-        assert_one_line_naming(err.strip(), run / file, field)
+        assert_refused_in_one_line(damaged_copy(old, tmp_path / str(index), damage), name, file, field, capsys)
 
 
 @pytest.mark.parametrize("name", list(FILE_DAMAGES))
