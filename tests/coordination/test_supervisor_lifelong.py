@@ -11,13 +11,15 @@ supervisor as it was."""
 from __future__ import annotations
 
 import heapq
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
-from coordination_instances import line
+from coordination_instances import fig2_example, line
 from supervisor_loops import contacts_at, error_in_disc, executor_for, wandering_instance
 
 from robofleet.coordination import Supervisor
+from robofleet.coordination.coordination_space import build_coordination_space
 from robofleet.coordination.segment_graph import build_segment_layout, find_cycle_nodes
 from robofleet.coordination.trajectories import make_trajectories
 from robofleet.core.errors import ConfigError, InfeasibleError
@@ -36,16 +38,56 @@ def new_leg(rng: np.random.Generator, start: np.ndarray) -> np.ndarray:
 
 
 class CycleWatch:
-    """Counts the moments the supervisor's active segment graph (exact resolution, on the
-    known progress) holds a cycle; the layout is rebuilt only when the plan changed."""
+    """Counts the labelings of the supervisor's plans whose active segment graph (exact
+    resolution, on the known progress) held a cycle; the layout is rebuilt only when the
+    plan changed.
+
+    The graph is searched only when the plan or the labels changed since the last search,
+    or some robot's known step went back: under one plan and one labeling, known progress
+    only marks more vertices as entered, and a subgraph of an acyclic graph is acyclic, so
+    no cycle can appear between two searches. A cycle present at some moment is therefore
+    present at the last search before it, and the count is zero exactly when every
+    moment's graph was acyclic.
+    """
 
     def __init__(self):
         self.space, self.layout, self.cycles = None, None, 0
+        self.labels, self.known = None, None
 
     def check(self, sup: Supervisor) -> None:
+        labels, known = sup.execution_state.labels, sup.known
         if sup.space is not self.space:
-            self.space, self.layout = sup.space, build_segment_layout(sup.space)
-        self.cycles += len(find_cycle_nodes(self.layout, sup.execution_state.labels, sup.known)) > 0
+            self.space, self.layout, self.labels = sup.space, build_segment_layout(sup.space), None
+        elif self.labels is not None and np.array_equal(labels, self.labels) and np.all(known >= self.known):
+            self.known = known.copy()
+            return
+        self.labels, self.known = labels.copy(), known.copy()
+        self.cycles += len(find_cycle_nodes(self.layout, labels, known)) > 0
+
+
+def test_the_cycle_watch_counts_a_cycle_exactly_when_some_moment_holds_one():
+    """Random walks over the Fig. 3 plan's labelings and progress (forward, and now and then
+    back): the watch's count is non-zero exactly when a search at every moment finds a cycle."""
+    space = build_coordination_space(fig2_example())
+    layout = build_segment_layout(space)
+    lengths = np.asarray(fig2_example().lengths)
+    for seed in range(200):
+        rng = np.random.default_rng(seed)
+        sup = SimpleNamespace(space=space, execution_state=SimpleNamespace(labels=space.initial_labels.copy()),
+                              known=np.zeros(len(lengths), np.intp))
+        watch, moments_with_a_cycle = CycleWatch(), 0
+        for _ in range(40):
+            move = rng.random()
+            if move < 0.2:
+                obstacle = int(rng.integers(len(sup.execution_state.labels)))
+                sup.execution_state.labels[obstacle] = rng.choice([space.robot_i[obstacle], space.robot_j[obstacle]])
+            elif move < 0.25:
+                sup.known = rng.integers(0, sup.known + 1)
+            else:
+                sup.known = np.minimum(sup.known + rng.integers(0, 3, len(lengths)), lengths)
+            watch.check(sup)
+            moments_with_a_cycle += len(find_cycle_nodes(layout, sup.execution_state.labels, sup.known)) > 0
+        assert (watch.cycles > 0) == (moments_with_a_cycle > 0), seed
 
 
 def lifelong_loop(seed: int, method: str, n: int = 4, appends: int = 6, max_delay: int = 3, cut_rate: float = 0.02) -> dict:
