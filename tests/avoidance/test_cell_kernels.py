@@ -144,3 +144,31 @@ def test_kernels_give_identical_results_on_one_and_two_threads(monkeypatch):
 def test_thread_setting_refuses_bad_counts(bad):
     with pytest.raises(ConfigError, match="threads"):
         kernels.set_threads(bad)
+
+
+def obstacles_from_bounds(lo: np.ndarray, hi: np.ndarray) -> ObstacleSet:
+    """An obstacle set carrying only the bounds the local-box selection reads."""
+    o, d = lo.shape
+    return ObstacleSet(np.zeros((o, 1, d)), np.zeros((o, d, d)), np.zeros(o), lo, hi)
+
+
+@pytest.mark.parametrize("seed", range(40))
+def test_obstacles_near_a_point_match_the_all_pairs_test(seed):
+    """The bucketed selection equals ``np.nonzero`` of the (N, O) local-box test, order
+    included: 2-D and 3-D, clusters far apart, obstacles of every size (huge ones force
+    the all-pairs path), points exactly on a grown bound, and a zero reach."""
+    rng = np.random.default_rng(seed)
+    d = int(rng.choice([2, 3]))
+    n, o = int(rng.integers(0, 300)), int(rng.integers(0, 60))
+    centres = rng.choice([0.0, 1e4, -3e5], size=(n, 1)) + rng.uniform(-8, 8, (n, d))
+    corners = rng.choice([0.0, 1e4], size=(o, 1)) + rng.uniform(-9, 9, (o, d))
+    size = rng.choice([0.01, 0.5, 3.0, 1e5], size=(o, 1), p=[0.2, 0.5, 0.28, 0.02]) * rng.random((o, d))
+    lo, hi = corners, corners + size
+    reach = float(rng.choice([0.0, 0.4, 2.0, 7.0]))
+    if n and o:  # points exactly on a grown bound
+        k = rng.integers(0, n, size=min(n, 20))
+        centres[k, 0] = lo[rng.integers(0, o, size=len(k)), 0] - reach
+    near = np.all(centres[:, None] + reach >= lo[None], axis=-1) & np.all(centres[:, None] - reach <= hi[None], axis=-1)
+    expected = np.nonzero(near)
+    owner, index = obstacles_from_bounds(lo, hi).near(centres, reach)
+    assert np.array_equal(owner, expected[0]) and np.array_equal(index, expected[1])

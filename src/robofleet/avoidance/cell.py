@@ -197,7 +197,7 @@ def build_cells(
     come from one compiled kernel, robots in parallel (:func:`_shared_cells_2d`);
     otherwise pairs are evaluated once each and scattered (appendix B reciprocity).
     The cost is O(N + K) for K neighbour pairs (a uniform grid, :mod:`robofleet.avoidance.neighbours`; a
-    k-d tree in 3-D), plus O(N · O_loc · V) for obstacles.
+    k-d tree in 3-D), plus O(N · O_loc · V) for the obstacles within R_loc (:meth:`.obstacles.ObstacleSet.near`).
     """
     check_cell_inputs(estimates, covs, radius, geometry)
     n, d = estimates.shape
@@ -388,8 +388,7 @@ def _uniform(covs: np.ndarray) -> bool:
 def _obstacle_rows(p, covs, radius, quantile, obstacles: ObstacleSet, local_box):
     if obstacles.count == 0:
         return None
-    near = np.all(p[:, None] + local_box >= obstacles.lo[None], axis=-1) & np.all(p[:, None] - local_box <= obstacles.hi[None], axis=-1)
-    owner, idx = np.nonzero(near)
+    owner, idx = obstacles.near(p, local_box)
     a, b = obstacle_planes(p[owner], obstacles, idx)
     return owner, a, b - buffer(a, covs[owner], radius[owner], quantile), Kind.OBSTACLE, idx
 

@@ -28,6 +28,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 
 from ..core import geometry
@@ -54,6 +55,35 @@ class ObstacleSet:
     @property
     def count(self) -> int:
         return len(self.vertices)
+
+    def near(self, points: np.ndarray, reach: float) -> tuple[np.ndarray, np.ndarray]:
+        """The pairs (point, obstacle) whose box of half-width ``reach`` around the point
+        meets the obstacle's bounds: ``p + reach ≥ lo`` and ``p − reach ≤ hi`` on every
+        axis, as ``(owner, index)`` in increasing point, then obstacle, order (the order of
+        ``np.nonzero`` on the ``(N, O)`` test).
+
+        The obstacles' bounds grown by ``reach`` and one cell more are bucketed on a grid of
+        side ``h = max(2 reach, median obstacle extent)`` (each obstacle under the few
+        cells it covers, the buckets sorted by cell key); a point tests exactly the
+        obstacles of its own cell, in increasing index. The grid is conservative — a point
+        that meets an obstacle lies within ``reach`` (plus rounding, far less than a cell)
+        of its bounds, so inside the grown cells — and the test is the same floating-point
+        comparison, so the result equals the ``(N, O)`` test's. Cost ``O(N log C + O·c +
+        pairs tested)`` for ``C`` bucket entries and ``c`` cells per obstacle; when the
+        buckets would outnumber ``16 (N + O)`` (obstacles far larger than the points'
+        spacing) every pair is tested, compiled.
+        """
+        p = np.ascontiguousarray(points, dtype=np.float64)
+        n, count = len(p), self.count
+        if n == 0 or count == 0:
+            return np.zeros(0, np.intp), np.zeros(0, np.intp)
+        lo, hi = np.ascontiguousarray(self.lo, dtype=np.float64), np.ascontiguousarray(self.hi, dtype=np.float64)
+        reach = float(reach)
+        h = max(2.0 * reach, float(np.median(np.max(hi - lo, axis=1))), 1e-9)
+        buckets = _obstacle_buckets(p, lo, hi, reach, h, 16 * (n + count) + 4096)
+        if buckets is None:
+            return _pairs_all(p, lo, hi, reach)
+        return _pairs_in_buckets(p, lo, hi, reach, h, *buckets)
 
     @classmethod
     def build(cls, polygons: Sequence[np.ndarray], covariances: np.ndarray, epsilon: float) -> "ObstacleSet":
@@ -151,3 +181,103 @@ def wall_planes(bounds: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     a = np.stack([edge[:, 1], -edge[:, 0]], axis=-1)
     a /= np.hypot(a[:, 0], a[:, 1])[:, None]
     return a, np.einsum("kd,kd->k", a, start)
+
+
+def _obstacle_buckets(p, lo, hi, reach, h, budget):
+    """The grid of :meth:`ObstacleSet.near`: the points' cell range ``(origin, span)`` and the
+    bucket entries ``(keys, obstacle)`` sorted by key (obstacles in increasing index within
+    a key); ``None`` when the entries would exceed ``budget`` or the keys overflow."""
+    cells = np.floor(p / h)
+    origin, top = cells.min(axis=0), cells.max(axis=0)
+    span = top - origin + 1
+    if float(np.prod(span)) > 2.0 ** 62:
+        return None
+    first = np.maximum(np.floor((lo - reach) / h) - 1, origin)
+    last = np.minimum(np.floor((hi + reach) / h) + 1, top)
+    covered = np.where(np.all(last >= first, axis=1), np.prod(np.maximum(last - first + 1, 0), axis=1), 0)
+    if float(covered.sum()) > budget:
+        return None
+    keys, owner = _fill_buckets(first.astype(np.int64), last.astype(np.int64), origin.astype(np.int64),
+                                span.astype(np.int64), covered.astype(np.int64))
+    order = np.argsort(keys, kind="stable")
+    return origin.astype(np.int64), span.astype(np.int64), keys[order], owner[order]
+
+
+@numba.njit(cache=True)
+def _fill_buckets(first, last, origin, span, covered):
+    """One entry ``(cell key, obstacle)`` per cell each obstacle's grown bounds cover."""
+    total = 0
+    for o in range(len(covered)):
+        total += covered[o]
+    keys, owner = np.empty(total, np.int64), np.empty(total, np.intp)
+    d, k = first.shape[1], 0
+    cell = np.empty(d, np.int64)
+    for o in range(len(covered)):
+        if covered[o] == 0:
+            continue
+        for a in range(d):
+            cell[a] = first[o, a]
+        for _ in range(covered[o]):
+            key = 0
+            for a in range(d):
+                key = key * span[a] + (cell[a] - origin[a])
+            keys[k], owner[k] = key, o
+            k += 1
+            for a in range(d - 1, -1, -1):  # next cell, last axis fastest
+                cell[a] += 1
+                if cell[a] <= last[o, a]:
+                    break
+                cell[a] = first[o, a]
+    return keys, owner
+
+
+@numba.njit(cache=True, inline="always")
+def _meets(p, i, lo, hi, o, reach):
+    """The local-box test of :meth:`ObstacleSet.near`, exactly as the ``(N, O)`` expression."""
+    for a in range(p.shape[1]):
+        if not (p[i, a] + reach >= lo[o, a] and p[i, a] - reach <= hi[o, a]):
+            return False
+    return True
+
+
+@numba.njit(cache=True)
+def _pairs_in_buckets(p, lo, hi, reach, h, origin, span, keys, owner):
+    """Each point's obstacles from its own cell's bucket: a counting pass, then a writing one."""
+    n, d = p.shape
+    begin, end = np.empty(n, np.int64), np.empty(n, np.int64)
+    count = np.zeros(n + 1, np.int64)
+    for i in range(n):
+        key = 0
+        for a in range(d):
+            key = key * span[a] + (np.int64(np.floor(p[i, a] / h)) - origin[a])
+        begin[i] = np.searchsorted(keys, key, "left")
+        end[i] = np.searchsorted(keys, key, "right")
+        for k in range(begin[i], end[i]):
+            count[i + 1] += _meets(p, i, lo, hi, owner[k], reach)
+    for i in range(n):
+        count[i + 1] += count[i]
+    point, obstacle = np.empty(count[n], np.intp), np.empty(count[n], np.intp)
+    for i in range(n):
+        w = count[i]
+        for k in range(begin[i], end[i]):
+            if _meets(p, i, lo, hi, owner[k], reach):
+                point[w], obstacle[w] = i, owner[k]
+                w += 1
+    return point, obstacle
+
+
+@numba.njit(cache=True)
+def _pairs_all(p, lo, hi, reach):
+    """Every (point, obstacle) pair tested: a counting pass, then a writing one."""
+    n, count = len(p), 0
+    for i in range(n):
+        for o in range(len(lo)):
+            count += _meets(p, i, lo, hi, o, reach)
+    point, obstacle = np.empty(count, np.intp), np.empty(count, np.intp)
+    w = 0
+    for i in range(n):
+        for o in range(len(lo)):
+            if _meets(p, i, lo, hi, o, reach):
+                point[w], obstacle[w] = i, o
+                w += 1
+    return point, obstacle
