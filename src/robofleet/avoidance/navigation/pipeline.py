@@ -187,8 +187,9 @@ class TeamNavigation:
 # the stages
 # ---------------------------------------------------------------------------------------
 def goal_stage(t: TeamNavigation, s: StepState) -> None:
+    """Latch arrivals; the target is the goal, the distance left the straight one."""
     t.goal.observe(s.p, s.goals)
-    s.target, s.moving = s.goals, np.zeros(len(s.goals), bool)
+    s.target, s.to_go, s.moving = s.goals, t.goal.distance, np.zeros(len(s.goals), bool)
 
 
 def home_stage(t: TeamNavigation, s: StepState) -> None:
@@ -197,10 +198,9 @@ def home_stage(t: TeamNavigation, s: StepState) -> None:
 
 
 def route_stage(t: TeamNavigation, s: StepState) -> None:
+    """The roadmap's sub-goal and path length left (without a route: the goal stage's)."""
     if t.navigating and t.route is not None:
         s.target, s.to_go = t.route.step(s.p)
-    else:
-        s.to_go = np.linalg.norm(s.goals - s.p, axis=1)
 
 
 def detour_stage(t: TeamNavigation, s: StepState) -> None:
@@ -226,6 +226,8 @@ def yielding_stage(t: TeamNavigation, s: StepState) -> None:
     if not (t.navigating and t.params.yielding.enabled):
         return
     parked, s.moving = parking_targets(s.p, s.goals, t.arrived, t.parking, t.yielding_params(), t.local_box, t.tolerance)
+    if not t.arrived.any():  # nobody parked: every target stays, nobody moves
+        return
     s.moving |= t.arrived & (t.parking.mode == HOLD) & ~t.goal.home & ~t.goal.within
     returning = s.moving & (t.parking.mode != YIELD)
     s.target = np.where((t.arrived & ~returning)[:, None], parked, s.target)
