@@ -210,14 +210,25 @@ def steer(estimates: np.ndarray, proj: Projection, v_max: float | np.ndarray, dt
     n = len(estimates)
     u, speed, move = np.empty((n, 2)), np.empty(n), np.empty(n)
     limit = np.ascontiguousarray(np.broadcast_to(np.asarray(v_max, dtype=np.float64), (n,)))
-    _steer(np.ascontiguousarray(estimates, dtype=np.float64), proj.point, proj.empty, limit, float(dt),
-           np.ascontiguousarray(hold, dtype=np.bool_), u, speed, move)
+    args = (np.ascontiguousarray(estimates, dtype=np.float64), proj.point, proj.empty, limit, float(dt),
+            np.ascontiguousarray(hold, dtype=np.bool_), u, speed, move)
+    if use_parallel(n):
+        _steer_parallel(*args)
+    else:
+        _steer_range(0, n, *args)
     return u, speed, move
 
 
+@numba.njit(cache=True, parallel=True)
+def _steer_parallel(estimates, point, empty, v_max, dt, hold, u, speed, move):
+    n, chunk = len(estimates), 4 * _CHUNK
+    for c in numba.prange((n + chunk - 1) // chunk):
+        _steer_range(c * chunk, min(n, (c + 1) * chunk), estimates, point, empty, v_max, dt, hold, u, speed, move)
+
+
 @numba.njit(cache=True)
-def _steer(estimates, point, empty, v_max, dt, hold, u, speed, move):
-    for i in range(len(estimates)):
+def _steer_range(lo, hi, estimates, point, empty, v_max, dt, hold, u, speed, move):
+    for i in range(lo, hi):
         if empty[i]:  # the target is the estimate itself: p̂ − p̂ = 0
             d0, d1 = estimates[i, 0] - estimates[i, 0], estimates[i, 1] - estimates[i, 1]
         else:

@@ -31,28 +31,42 @@ import numba
 import numpy as np
 
 from ..cell import Cells, Kind
+from ..kernels import use_parallel
 from ..projection import Projection, project_onto_cells, project_rows_into
 from .params import RightHandParams
 
 
 _ROBOT = int(Kind.ROBOT)
+_CHUNK = 1024  # robots per parallel task
 
 
 def blocked_by_robot(estimates: np.ndarray, active: np.ndarray, cells, near: float) -> np.ndarray:
     """``(N,)``: an active constraint at the projected goal is a face shared with a
     neighbour (:attr:`Kind.ROBOT`) and the robot's estimate lies within ``near`` of it,
     ``(bₖ − aₖ·p̂)/‖aₖ‖ < near`` (one compiled pass over the robots)."""
-    out = np.empty(len(estimates), np.bool_)
-    _blocked_by_robot(np.ascontiguousarray(estimates, dtype=np.float64), np.ascontiguousarray(active), np.ascontiguousarray(cells.A),
-                      np.ascontiguousarray(cells.b), np.ascontiguousarray(cells.kind), float(near), out)
+    n = len(estimates)
+    out = np.empty(n, np.bool_)
+    args = (np.ascontiguousarray(estimates, dtype=np.float64), np.ascontiguousarray(active), np.ascontiguousarray(cells.A),
+            np.ascontiguousarray(cells.b), np.ascontiguousarray(cells.kind), float(near), out)
+    if use_parallel(n):
+        _blocked_parallel(*args)
+    else:
+        _blocked_range(0, n, *args)
     return out
 
 
+@numba.njit(cache=True, parallel=True)
+def _blocked_parallel(estimates, active, A, b, kind, near, out):
+    n = len(estimates)
+    for c in numba.prange((n + _CHUNK - 1) // _CHUNK):
+        _blocked_range(c * _CHUNK, min(n, (c + 1) * _CHUNK), estimates, active, A, b, kind, near, out)
+
+
 @numba.njit(cache=True)
-def _blocked_by_robot(estimates, active, A, b, kind, near, out):
-    """:func:`blocked_by_robot`, rounded as the numpy expressions ``b − einsum(a, p̂)`` and
-    ``np.maximum(np.linalg.norm(a), 1e-12)`` round it."""
-    for i in range(len(estimates)):
+def _blocked_range(lo, hi, estimates, active, A, b, kind, near, out):
+    """:func:`blocked_by_robot` for robots ``lo … hi − 1``, rounded as the numpy expressions
+    ``b − einsum(a, p̂)`` and ``np.maximum(np.linalg.norm(a), 1e-12)`` round it."""
+    for i in range(lo, hi):
         blocked = False
         for c in range(active.shape[1]):
             k = active[i, c]
