@@ -31,7 +31,7 @@ import numba
 import numpy as np
 
 from ..cell import Cells, Kind
-from ..kernels import use_parallel
+from ..kernels import row_products, use_parallel
 from ..projection import Projection, project_onto_cells, project_rows_into
 from .params import RightHandParams
 
@@ -83,7 +83,7 @@ def right_hand_goals(estimates: np.ndarray, goals: np.ndarray, angle: float) -> 
     """The goals turned clockwise by ``angle`` [rad] about each robot."""
     c, s = np.cos(angle), np.sin(angle)
     turn = np.array([[c, s], [-s, c]])
-    return (goals - estimates) @ turn.T + estimates
+    return row_products(goals - estimates, turn.T) + estimates
 
 
 def on_obstacle_face(active: np.ndarray, cells) -> np.ndarray:
