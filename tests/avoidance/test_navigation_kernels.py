@@ -1,7 +1,8 @@
 """The compiled passes of the navigation step equal, bit for bit, the numpy expressions
 they replace (the right-hand rule's blocked test and second projection, the band return,
-the goal checker's distances, the blocked products of short rows), on random cells with
-empty cells, NaN estimates, zero rows and fleets large enough for the parallel kernels."""
+the goal checker's distances, the route's segment test, the blocked products of short
+rows), on random cells with empty cells, NaN estimates, zero rows and fleets large enough
+for the parallel kernels."""
 
 from __future__ import annotations
 
@@ -15,7 +16,9 @@ from robofleet.avoidance.navigation.band import out_of_the_band
 from robofleet.avoidance.navigation.goal import GoalChecker, goal_distances
 from robofleet.avoidance.navigation.params import RightHandParams
 from robofleet.avoidance.navigation.right_hand import blocked_by_robot, right_hand_goals, turned_projection
+from robofleet.avoidance.navigation.route import Halfplanes, gap_blockers, grown_polygons, halfplanes, segments_free
 from robofleet.avoidance.projection import Projection, project_rows_into
+from robofleet.avoidance.random_scenarios import random_convex_polygon
 
 SIZES = [300, PARALLEL_MIN_ROBOTS + 777]  # the serial and the parallel kernels
 
@@ -166,3 +169,41 @@ def test_row_products_are_one_product_bit_for_bit(n, k):
     np.testing.assert_array_equal(row_products(x, matrix), x @ matrix)
     np.testing.assert_array_equal(right_hand_goals(x[:, :2], x[:, :2][::-1], np.deg2rad(33.0)),
                                   (x[:, :2][::-1] - x[:, :2]) @ turn_matrix(33.0).T + x[:, :2])
+
+
+def numpy_segments_free(a, b, obstacles: Halfplanes):
+    """The Cyrus–Beck test as numpy array expressions over ``(S, O, K)``."""
+    if obstacles.A.shape[0] == 0:
+        return np.ones(len(a), bool)
+    d = b - a
+    na = np.einsum("okc,sc->sok", obstacles.A, a) - obstacles.b[None]
+    nd = np.einsum("okc,sc->sok", obstacles.A, d)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = -na / nd
+        entering, leaving = nd < -1e-9, nd > 1e-9
+        t_lo = np.max(np.where(entering, t, 0.0), axis=2)
+        t_hi = np.min(np.where(leaving, t, 1.0), axis=2)
+        outside_parallel = np.any((np.abs(nd) <= 1e-9) & (na >= -1e-9), axis=2)
+        length = np.linalg.norm(d, axis=1)[:, None]
+        crosses = ~outside_parallel & ((t_hi - t_lo) * length > 1e-6)
+    return ~np.any(crosses, axis=1)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_segment_test_is_the_numpy_expression(seed):
+    """Random segments against grown random polygons and the thin walls across gaps, with
+    segments that run along edges, start on vertices, have no length, or hold NaN/inf."""
+    rng = np.random.default_rng(40 + seed)
+    polygons = [np.asarray(random_convex_polygon(rng, rng.uniform(-3, 3, 2), rng.uniform(0.3, 1.0))) for _ in range(5)]
+    planes = halfplanes(grown_polygons(polygons, 0.2) + gap_blockers(polygons, 1.5))
+    vertices = np.concatenate(grown_polygons(polygons, 0.2))
+    n = PARALLEL_MIN_ROBOTS + 3000
+    a, b = rng.uniform(-4, 4, (n, 2)), rng.uniform(-4, 4, (n, 2))
+    a[:500] = vertices[rng.integers(0, len(vertices), 500)]  # from a vertex along its polygon's edges or through it
+    b[:250] = vertices[rng.integers(0, len(vertices), 250)]
+    b[500:600] = a[500:600]  # no length
+    a[600:610] = np.nan
+    b[610:620] = np.inf
+    for rows in (slice(0, 300), slice(None)):  # the serial and the parallel kernel
+        np.testing.assert_array_equal(segments_free(a[rows], b[rows], planes), numpy_segments_free(a[rows], b[rows], planes))
+    assert 0.2 < segments_free(a, b, planes).mean() < 0.9
