@@ -29,7 +29,13 @@ Threads: robofleet's kernels run on ``numba.get_num_threads()`` threads (set
 ``NUMBA_NUM_THREADS`` or pass ``--threads 1 2`` to measure both in the same run); RVO2's
 wheel is built without OpenMP (one thread).
 
-Run: ``python benchmarks/vs_rvo2.py [--sizes 1000 10000 50000] [--crowd-sizes 1000 10000] [--clutter-sizes 1000 10000] [--rounds 3] [--threads 1 2]``
+Clock (``--clock``): ``wall`` (the default) times the steps as above; ``cpu`` times the
+circle swap's steps in CPU time of the process (``time.process_time``: RVO2's ``do_step``,
+and robofleet's cells, navigation and control — the block ``step_seconds`` times), which
+other jobs on a shared machine do not stretch; with ``--threads 1`` both sides then count
+the work of one core.
+
+Run: ``python benchmarks/vs_rvo2.py [--sizes 1000 10000 50000] [--crowd-sizes 1000 10000] [--clutter-sizes 1000 10000] [--rounds 3] [--threads 1 2] [--clock wall|cpu]``
 (needs ``pip install 'robofleet[bench]'`` for ``pyrvo``).
 """
 
@@ -38,7 +44,10 @@ from __future__ import annotations
 import argparse
 import math
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from itertools import pairwise
+from unittest import mock
 
 import numba
 import numpy as np
@@ -47,6 +56,7 @@ from _machine import machine, nlogn_growth
 import robofleet
 from robofleet.avoidance.orca import OrcaParams, orca_velocities, preferred_velocities
 from robofleet.avoidance.orca_obstacles import ObstacleEdges
+from robofleet.avoidance.world import World
 
 RADIUS, V_MAX, DT = 0.2, 0.4, 0.1
 ORCA = OrcaParams(neighbor_dist=3.0, max_neighbors=10, time_horizon=2.0, time_horizon_obst=2.0)
@@ -54,6 +64,7 @@ PAPER_CONTROLLER = {"navigation": {"enabled": False}}
 """The scenario keys that switch the navigation rules off (the paper's one-step controller)."""
 B_UAVC = {"B-UAVC": {}, "B-UAVC paper": PAPER_CONTROLLER}
 """The two B-UAVC runs timed: as shipped (the default) and the paper's controller."""
+CLOCKS = {"wall": time.perf_counter, "cpu": time.process_time}
 
 
 def circle(n: int) -> tuple[np.ndarray, np.ndarray]:
@@ -114,28 +125,49 @@ def rvo2_velocities(sim) -> np.ndarray:
 
 
 def rvo2_run(starts: np.ndarray, goals: np.ndarray, steps: int, velocities: np.ndarray | None = None,
-             obstacles: list[np.ndarray] = ()) -> tuple[float, object]:
+             obstacles: list[np.ndarray] = (), clock: str = "wall") -> tuple[float, object]:
     """Median seconds of ``do_step`` over ``steps`` steps (preferred velocities set untimed)."""
     sim = rvo2_simulator(starts, velocities, obstacles)
-    seconds = []
+    seconds, now = [], CLOCKS[clock]
     for _ in range(steps):
         pref = preferred_velocities(rvo2_positions(sim), goals, V_MAX, DT)
         for i, v in enumerate(pref):
             sim.set_agent_pref_velocity(i, (float(v[0]), float(v[1])))
-        t0 = time.perf_counter()
+        t0 = now()
         sim.do_step()
-        seconds.append(time.perf_counter() - t0)
+        seconds.append(now() - t0)
     return float(np.median(seconds)), sim
 
 
 # ---------------------------------------------------------------------------------------
 # robofleet
 # ---------------------------------------------------------------------------------------
-def robofleet_run(spec, threads: int) -> float:
-    """Median ``step_seconds`` of one ``simulate`` run on ``threads`` numba threads."""
+def robofleet_run(spec, threads: int, clock: str = "wall") -> float:
+    """Median ``step_seconds`` of one ``simulate`` run on ``threads`` numba threads, or
+    (``clock="cpu"``) the median CPU time of the same block, :meth:`World.decide`."""
     numba.set_num_threads(threads)
-    trace = robofleet.simulate(spec, seed=0)
-    return float(np.median(trace.arrays["step_seconds"]))
+    if clock == "wall":
+        trace = robofleet.simulate(spec, seed=0)
+        return float(np.median(trace.arrays["step_seconds"]))
+    with step_cpu_seconds() as seconds:
+        robofleet.simulate(spec, seed=0)
+    return float(np.median(seconds))
+
+
+@contextmanager
+def step_cpu_seconds() -> Iterator[list[float]]:
+    """The CPU time of every :meth:`World.decide` call in the block (the step that
+    ``step_seconds`` times: cells, navigation and control), appended to the list yielded."""
+    seconds, decide = [], World.decide
+
+    def timed(world, *args):
+        t0 = time.process_time()
+        out = decide(world, *args)
+        seconds.append(time.process_time() - t0)
+        return out
+
+    with mock.patch.object(World, "decide", timed):
+        yield seconds
 
 
 def orca_crowd_run(starts, velocities, goals, steps: int, threads: int, obstacles: ObstacleEdges | None = None) -> tuple[float, np.ndarray]:
@@ -158,8 +190,8 @@ def spread(values: list[float]) -> str:
     return f"{min(values):.2f} / {float(np.median(values)):.2f} / {max(values):.2f}"
 
 
-def circle_table(sizes, rounds, steps, threads) -> None:
-    print(f"\ncircle swap, {steps} steps per run, {rounds} rounds; B-UAVC = the default (navigation rules on), "
+def circle_table(sizes, rounds, steps, threads, clock: str = "wall") -> None:
+    print(f"\ncircle swap, {steps} steps per run, {rounds} rounds, {clock} time; B-UAVC = the default (navigation rules on), "
           "B-UAVC paper = the paper's controller; ratio = robofleet step / RVO2 do_step (min / median / max)")
     labels = ["ORCA", *B_UAVC]
     head = f"{'robots':>8} {'RVO2 ms':>9}"
@@ -173,10 +205,10 @@ def circle_table(sizes, rounds, steps, threads) -> None:
         specs = {"ORCA": scenario(n, steps, "orca", 0.0), **{label: scenario(n, steps, "buavc", 0.1, extra) for label, extra in B_UAVC.items()}}
         rvo, times = [], {(m, t): [] for m in specs for t in threads}
         for _ in range(rounds):
-            rvo.append(rvo2_run(starts, goals, steps)[0])
+            rvo.append(rvo2_run(starts, goals, steps, clock=clock)[0])
             for t in threads:
                 for m, spec in specs.items():
-                    times[m, t].append(robofleet_run(spec, t))
+                    times[m, t].append(robofleet_run(spec, t, clock))
         line = f"{n:>8} {np.median(rvo) * 1e3:>9.2f}"
         medians.setdefault("RVO2", []).append(float(np.median(rvo)))
         for t in threads:
@@ -315,6 +347,7 @@ def main() -> None:
     ap.add_argument("--rounds", type=int, default=3)
     ap.add_argument("--steps", type=int, default=10)
     ap.add_argument("--threads", type=int, nargs="+", default=[numba.get_num_threads()])
+    ap.add_argument("--clock", choices=sorted(CLOCKS), default="wall", help="time the circle swap's steps in wall or CPU time")
     args = ap.parse_args()
     if args.write_reference:
         write_reference(args.write_reference)
@@ -326,7 +359,7 @@ def main() -> None:
     warm_starts, warm_goals, warm_boxes = clutter(100)
     orca_crowd_run(warm_starts, np.zeros_like(warm_starts), warm_goals, 2, numba.get_num_threads(), ObstacleEdges(warm_boxes))
     if args.sizes:
-        circle_table(args.sizes, args.rounds, args.steps, args.threads)
+        circle_table(args.sizes, args.rounds, args.steps, args.threads, args.clock)
     if args.crowd_sizes:
         crowd_table(args.crowd_sizes, args.rounds, args.steps, args.threads)
     if args.clutter_sizes:

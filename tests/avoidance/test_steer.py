@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from robofleet.avoidance.kernels import PARALLEL_MIN_ROBOTS
 from robofleet.avoidance.projection import Projection, steer
 
 
@@ -22,9 +23,9 @@ def numpy_command(estimates, proj: Projection, v_max, dt, hold):
 
 @pytest.mark.parametrize("seed", range(6))
 @pytest.mark.parametrize("per_robot_limit", [False, True])
-def test_steer_is_the_numpy_command_bit_for_bit(seed, per_robot_limit):
+@pytest.mark.parametrize("n", [500, PARALLEL_MIN_ROBOTS + 500])  # the serial and the parallel kernel
+def test_steer_is_the_numpy_command_bit_for_bit(seed, per_robot_limit, n):
     rng = np.random.default_rng(seed)
-    n = 500
     estimates = rng.normal(size=(n, 2)) * 10 ** rng.uniform(-3, 3)
     point = estimates + rng.normal(size=(n, 2)) * 10.0 ** rng.integers(-14, 1, size=(n, 1))  # reaches down to under 1e-12
     same = rng.random(n) < 0.1

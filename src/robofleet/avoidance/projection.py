@@ -104,28 +104,34 @@ def _project_range(lo, hi, goals, A, b, valid, point, empty, active):
 
 @numba.njit(cache=True, inline="always")
 def _project_one(i, goals, A, b, valid, point, empty, active, slack, violated):
-    """Steps 1–4 of the module docstring for robot ``i``."""
+    """Robot ``i``'s goal onto its cell (:func:`_project_point`), written into row ``i``."""
+    point[i, 0], point[i, 1], active[i, 0], active[i, 1], empty[i] = _project_point(goals[i, 0], goals[i, 1], i, A, b, valid, slack, violated)
+
+
+@numba.njit(cache=True, inline="always")
+def _project_point(g0, g1, i, A, b, valid, slack, violated):
+    """Steps 1–4 of the module docstring for the point ``g`` and cell ``i``: ``(x0, x1,
+    first active row, second active row, empty)`` (``-1`` for an active row not used;
+    ``x = NaN`` for an empty cell)."""
     m = A.shape[1]
-    g0, g1 = goals[i, 0], goals[i, 1]
     any_violated = False
     for k in range(m):
         slack[k] = A[i, k, 0] * g0 + A[i, k, 1] * g1 - b[i, k]
         violated[k] = valid[i, k] and _excess(g0, g1, A, b, i, k) > 0
         any_violated |= violated[k]
-    point[i, 0], point[i, 1] = g0, g1
+    x0, x1, k0, k1 = g0, g1, -1, -1
     if not any_violated:
-        return
+        return x0, x1, k0, k1, False
     best = np.inf
     # step 2: edge candidates of violated constraints (any feasible one is optimal)
     for k in range(m):
         if violated[k]:
-            x0, x1 = g0 - slack[k] * A[i, k, 0], g1 - slack[k] * A[i, k, 1]
-            if slack[k] < best and _feasible(x0, x1, A, b, valid, i):
+            e0, e1 = g0 - slack[k] * A[i, k, 0], g1 - slack[k] * A[i, k, 1]
+            if slack[k] < best and _feasible(e0, e1, A, b, valid, i):
                 best = slack[k]
-                point[i, 0], point[i, 1] = x0, x1
-                active[i, 0], active[i, 1] = k, -1
+                x0, x1, k0, k1 = e0, e1, k, -1
     if best < np.inf:
-        return
+        return x0, x1, k0, k1, False
     # step 3: vertices pairing a violated constraint with any other, with λ ≥ 0
     for k in range(m):
         if not violated[k]:
@@ -148,11 +154,48 @@ def _project_one(i, goals, A, b, valid, point, empty, active, slack, violated):
             dist = np.sqrt(r0 * r0 + r1 * r1)
             if dist < best and _feasible(v0, v1, A, b, valid, i):
                 best = dist
-                point[i, 0], point[i, 1] = v0, v1
-                active[i, 0], active[i, 1] = k, j
+                x0, x1, k0, k1 = v0, v1, k, j
     if best == np.inf:  # step 4: empty cell
-        point[i, 0], point[i, 1] = np.nan, np.nan
-        empty[i] = True
+        return np.nan, np.nan, -1, -1, True
+    return x0, x1, k0, k1, False
+
+
+def project_rows_into(point: np.ndarray, active: np.ndarray | None, rows: np.ndarray, goals: np.ndarray, cells: Cells) -> None:
+    """Project ``goals[r]`` onto the cell of robot ``rows[r]`` and, unless that cell is
+    empty, write the result into ``point[rows[r]]`` (and ``active[rows[r]]`` when
+    ``active`` is given), in place: the values :func:`project_onto_cells` computes for
+    ``goals`` and ``cell_rows(cells, rows)``, without gathering those rows' cells.
+    ``rows`` must not repeat a robot."""
+    rows = np.ascontiguousarray(rows, dtype=np.intp)
+    if len(rows) == 0:
+        return
+    target = np.zeros((0, 2), np.intp) if active is None else active
+    args = (rows, np.ascontiguousarray(goals, dtype=np.float64), np.ascontiguousarray(cells.A), np.ascontiguousarray(cells.b),
+            np.ascontiguousarray(cells.valid), point, target, active is not None)
+    if use_parallel(len(rows)):
+        _project_rows_parallel(*args)
+    else:
+        _project_rows_range(0, len(rows), *args)
+
+
+@numba.njit(cache=True, parallel=True)
+def _project_rows_parallel(rows, goals, A, b, valid, point, active, with_active):
+    """:func:`project_rows_into` in parallel chunks (every robot appears once in ``rows``)."""
+    n = len(rows)
+    for c in numba.prange((n + _CHUNK - 1) // _CHUNK):
+        _project_rows_range(c * _CHUNK, min(n, (c + 1) * _CHUNK), rows, goals, A, b, valid, point, active, with_active)
+
+
+@numba.njit(cache=True)
+def _project_rows_range(lo, hi, rows, goals, A, b, valid, point, active, with_active):
+    slack, violated = np.empty(A.shape[1]), np.empty(A.shape[1], np.bool_)
+    for r in range(lo, hi):
+        i = rows[r]
+        x0, x1, k0, k1, none = _project_point(goals[r, 0], goals[r, 1], i, A, b, valid, slack, violated)
+        if not none:
+            point[i, 0], point[i, 1] = x0, x1
+            if with_active:
+                active[i, 0], active[i, 1] = k0, k1
 
 
 def steer(estimates: np.ndarray, proj: Projection, v_max: float | np.ndarray, dt: float, hold: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -167,14 +210,25 @@ def steer(estimates: np.ndarray, proj: Projection, v_max: float | np.ndarray, dt
     n = len(estimates)
     u, speed, move = np.empty((n, 2)), np.empty(n), np.empty(n)
     limit = np.ascontiguousarray(np.broadcast_to(np.asarray(v_max, dtype=np.float64), (n,)))
-    _steer(np.ascontiguousarray(estimates, dtype=np.float64), proj.point, proj.empty, limit, float(dt),
-           np.ascontiguousarray(hold, dtype=np.bool_), u, speed, move)
+    args = (np.ascontiguousarray(estimates, dtype=np.float64), proj.point, proj.empty, limit, float(dt),
+            np.ascontiguousarray(hold, dtype=np.bool_), u, speed, move)
+    if use_parallel(n):
+        _steer_parallel(*args)
+    else:
+        _steer_range(0, n, *args)
     return u, speed, move
 
 
+@numba.njit(cache=True, parallel=True)
+def _steer_parallel(estimates, point, empty, v_max, dt, hold, u, speed, move):
+    n, chunk = len(estimates), 4 * _CHUNK
+    for c in numba.prange((n + chunk - 1) // chunk):
+        _steer_range(c * chunk, min(n, (c + 1) * chunk), estimates, point, empty, v_max, dt, hold, u, speed, move)
+
+
 @numba.njit(cache=True)
-def _steer(estimates, point, empty, v_max, dt, hold, u, speed, move):
-    for i in range(len(estimates)):
+def _steer_range(lo, hi, estimates, point, empty, v_max, dt, hold, u, speed, move):
+    for i in range(lo, hi):
         if empty[i]:  # the target is the estimate itself: p̂ − p̂ = 0
             d0, d1 = estimates[i, 0] - estimates[i, 0], estimates[i, 1] - estimates[i, 1]
         else:

@@ -50,6 +50,7 @@ from .cell_model import (
     team_covariance,
     team_noise_factor,
 )
+from .kernels import row_products
 from .layout import initial_layout
 from .metrics import ControllerCounts
 from .mpc import BuavcMPC, SingleIntegratorParams
@@ -318,7 +319,7 @@ class World:
     def position_noise(self, rng: np.random.Generator) -> np.ndarray:
         """Estimation errors ``(N, d)``, one draw from ``N(0, Σ_i)`` per robot."""
         z = rng.standard_normal((self.n, self.dim))
-        return z @ self.noise_factor.T if self.noise_factor.ndim == 2 else np.einsum("nij,nj->ni", self.noise_factor, z)
+        return row_products(z, self.noise_factor.T) if self.noise_factor.ndim == 2 else np.einsum("nij,nj->ni", self.noise_factor, z)
 
     def obstacle_shift(self, rng: np.random.Generator) -> np.ndarray:
         """Estimation errors ``(O, d)`` of the obstacles' positions, drawn from ``N(0, Σ_o)``."""

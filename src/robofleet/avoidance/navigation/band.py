@@ -18,23 +18,58 @@ effects: docs/results/avoidance.md "Measurements behind the navigation stages".
 
 from __future__ import annotations
 
+import numba
 import numpy as np
 
-from ..cell import Cells, Kind, cell_rows
-from ..projection import Projection, project_onto_cells
+from ..cell import Cells, Kind
+from ..kernels import use_parallel
+from ..projection import Projection, project_rows_into
 from .params import BandParams
+
+_OBSTACLE = int(Kind.OBSTACLE)
+_CHUNK = 1024  # robots per parallel task
 
 
 def out_of_the_band(estimates: np.ndarray, proj: Projection, cells: Cells, depth: float) -> Projection:
     """``proj`` with the target of every robot whose estimate lies more than ``depth``
     beyond one of its cell's obstacle faces replaced by ``Π_Vi(p̂)`` (module docstring)."""
-    slack = np.einsum("nkc,nc->nk", cells.A, estimates) - cells.b
-    norm = np.maximum(np.linalg.norm(cells.A, axis=-1), 1e-12)
-    deep = ~proj.empty & np.any(cells.valid & (cells.kind == Kind.OBSTACLE) & (slack / norm > depth), axis=1)
-    if not deep.any():
-        return proj
+    estimates = np.ascontiguousarray(estimates, dtype=np.float64)
+    n = len(estimates)
+    deep = np.empty(n, np.bool_)
+    args = (estimates, np.ascontiguousarray(cells.A), np.ascontiguousarray(cells.b), np.ascontiguousarray(cells.valid),
+            np.ascontiguousarray(cells.kind), np.ascontiguousarray(proj.empty), float(depth), deep)
+    if use_parallel(n):
+        _deep_parallel(*args)
+    else:
+        _deep_range(0, n, *args)
     idx = np.flatnonzero(deep)
-    back = project_onto_cells(estimates[idx], cell_rows(cells, idx))
+    if len(idx) == 0:
+        return proj
     point = proj.point.copy()
-    point[idx] = np.where(back.empty[:, None], point[idx], back.point)
+    project_rows_into(point, None, idx, estimates[idx], cells)
     return Projection(point, proj.empty, proj.active)
+
+
+@numba.njit(cache=True, parallel=True)
+def _deep_parallel(estimates, A, b, valid, kind, empty, depth, deep):
+    n = len(estimates)
+    for c in numba.prange((n + _CHUNK - 1) // _CHUNK):
+        _deep_range(c * _CHUNK, min(n, (c + 1) * _CHUNK), estimates, A, b, valid, kind, empty, depth, deep)
+
+
+@numba.njit(cache=True)
+def _deep_range(lo, hi, estimates, A, b, valid, kind, empty, depth, deep):
+    """Robots ``lo … hi − 1`` with a non-empty cell whose estimate lies more than ``depth``
+    beyond one of its valid obstacle faces, ``(aₖ·p̂ − bₖ)/max(‖aₖ‖, 1e-12) > depth``, rounded
+    as the numpy expressions ``einsum(A, p̂) − b`` and ``np.maximum(np.linalg.norm(A), 1e-12)``."""
+    for i in range(lo, hi):
+        found = False
+        if not empty[i]:
+            for k in range(A.shape[1]):
+                if not valid[i, k] or kind[i, k] != _OBSTACLE:
+                    continue
+                a0, a1 = A[i, k, 0], A[i, k, 1]
+                norm = np.sqrt(a0 * a0 + a1 * a1)
+                slack = (a0 * estimates[i, 0] + a1 * estimates[i, 1]) - b[i, k]
+                found |= slack / (norm if norm != norm or norm > 1e-12 else 1e-12) > depth
+        deep[i] = found

@@ -20,12 +20,31 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 
 
 def within_goal(points: np.ndarray, goals: np.ndarray, tolerance: float) -> np.ndarray:
     """``(N,)``: ``‖g_i − p_i‖ ≤ tolerance``."""
-    return np.linalg.norm(goals - points, axis=1) <= tolerance
+    return goal_distances(points, goals) <= tolerance
+
+
+def goal_distances(points: np.ndarray, goals: np.ndarray) -> np.ndarray:
+    """``(N,)``: ``‖g_i − p_i‖``, one compiled pass rounded as ``np.linalg.norm(goals −
+    points, axis=1)`` rounds it (the squares summed in order)."""
+    out = np.empty(len(points))
+    _goal_distances(np.ascontiguousarray(points, dtype=np.float64), np.ascontiguousarray(goals, dtype=np.float64), out)
+    return out
+
+
+@numba.njit(cache=True)
+def _goal_distances(points, goals, out):
+    for i in range(len(points)):
+        total = 0.0
+        for c in range(points.shape[1]):
+            d = goals[i, c] - points[i, c]
+            total = d * d if c == 0 else total + d * d
+        out[i] = np.sqrt(total)
 
 
 @dataclass
@@ -36,14 +55,17 @@ class GoalChecker:
     arrived: np.ndarray
     home: np.ndarray
     within: np.ndarray
+    distance: np.ndarray  # this step's ‖g − p‖
 
     @classmethod
     def initial(cls, n: int, tolerance: float) -> GoalChecker:
-        return cls(tolerance, np.zeros(n, bool), np.zeros(n, bool), np.zeros(n, bool))
+        return cls(tolerance, np.zeros(n, bool), np.zeros(n, bool), np.zeros(n, bool), np.full(n, np.inf))
 
     def observe(self, points: np.ndarray, goals: np.ndarray) -> np.ndarray:
-        """This step's estimates: latch the arrivals (returned, updated in place)."""
-        self.within = within_goal(points, goals, self.tolerance)
+        """This step's estimates: latch the arrivals (returned, updated in place); the
+        distances to the goals are kept in ``distance``."""
+        self.distance = goal_distances(points, goals)
+        self.within = self.distance <= self.tolerance  # within_goal
         self.arrived |= self.within
         return self.arrived
 

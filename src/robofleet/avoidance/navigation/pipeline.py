@@ -187,8 +187,9 @@ class TeamNavigation:
 # the stages
 # ---------------------------------------------------------------------------------------
 def goal_stage(t: TeamNavigation, s: StepState) -> None:
+    """Latch arrivals; the target is the goal, the distance left the straight one."""
     t.goal.observe(s.p, s.goals)
-    s.target, s.moving = s.goals, np.zeros(len(s.goals), bool)
+    s.target, s.to_go, s.moving = s.goals, t.goal.distance, np.zeros(len(s.goals), bool)
 
 
 def home_stage(t: TeamNavigation, s: StepState) -> None:
@@ -197,10 +198,9 @@ def home_stage(t: TeamNavigation, s: StepState) -> None:
 
 
 def route_stage(t: TeamNavigation, s: StepState) -> None:
+    """The roadmap's sub-goal and path length left (without a route: the goal stage's)."""
     if t.navigating and t.route is not None:
         s.target, s.to_go = t.route.step(s.p)
-    else:
-        s.to_go = np.linalg.norm(s.goals - s.p, axis=1)
 
 
 def detour_stage(t: TeamNavigation, s: StepState) -> None:
@@ -211,7 +211,8 @@ def detour_stage(t: TeamNavigation, s: StepState) -> None:
 def single_integrator_recovery(t: TeamNavigation, s: StepState) -> None:
     """Steer to the rotated target or the obstacle vertex while recovering (recovery starts in ``progress``)."""
     s.route_target = s.target
-    s.target = recovery_targets(s.p, s.target, t.mode, t.vertex)
+    if np.any(t.mode != NORMAL):  # else every robot keeps its target
+        s.target = recovery_targets(s.p, s.target, t.mode, t.vertex)
 
 
 def rotation_recovery(t: TeamNavigation, s: StepState) -> None:
@@ -226,6 +227,8 @@ def yielding_stage(t: TeamNavigation, s: StepState) -> None:
     if not (t.navigating and t.params.yielding.enabled):
         return
     parked, s.moving = parking_targets(s.p, s.goals, t.arrived, t.parking, t.yielding_params(), t.local_box, t.tolerance)
+    if not t.arrived.any():  # nobody parked: every target stays, nobody moves
+        return
     s.moving |= t.arrived & (t.parking.mode == HOLD) & ~t.goal.home & ~t.goal.within
     returning = s.moving & (t.parking.mode != YIELD)
     s.target = np.where((t.arrived & ~returning)[:, None], parked, s.target)
@@ -259,7 +262,8 @@ def progress_stage(t: TeamNavigation, s: StepState) -> None:
     if stuck.any():
         grown = t.grown if not (t.navigating and t.route is not None) else None  # the roadmap already routes around obstacles
         start_recovery(stuck, s.p, s.route_target, s.cells, s.proj.active, t.mode, t.mode_left, t.vertex, t.deadlock, grown)
-    count_down(s.p, t.mode, t.mode_left, t.vertex, max(t.tolerance, float(np.max(t.v_max)) * t.dt))
+    if np.any(t.mode != NORMAL):  # else no recovery to count down
+        count_down(s.p, t.mode, t.mode_left, t.vertex, max(t.tolerance, float(np.max(t.v_max)) * t.dt))
 
 
 # -- the cell-keeping controllers ---------------------------------------------------------

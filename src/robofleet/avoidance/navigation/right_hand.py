@@ -27,29 +27,63 @@ effects: docs/results/avoidance.md "Measurements behind the navigation stages".
 
 from __future__ import annotations
 
+import numba
 import numpy as np
 
-from ..cell import Cells, Kind, cell_rows
-from ..projection import Projection, project_onto_cells
+from ..cell import Cells, Kind
+from ..kernels import row_products, use_parallel
+from ..projection import Projection, project_onto_cells, project_rows_into
 from .params import RightHandParams
+
+
+_ROBOT = int(Kind.ROBOT)
+_CHUNK = 1024  # robots per parallel task
 
 
 def blocked_by_robot(estimates: np.ndarray, active: np.ndarray, cells, near: float) -> np.ndarray:
     """``(N,)``: an active constraint at the projected goal is a face shared with a
-    neighbour (:attr:`Kind.ROBOT`) and the robot's estimate lies within ``near`` of it."""
-    rows = np.arange(len(estimates))[:, None]
-    act = np.maximum(active, 0)
-    a, b = cells.A[rows, act], cells.b[rows, act]  # (N, 2, 2), (N, 2)
-    gap = (b - np.einsum("nkc,nc->nk", a, estimates)) / np.maximum(np.linalg.norm(a, axis=-1), 1e-12)
-    robot_face = (active >= 0) & (cells.kind[rows, act] == Kind.ROBOT) & (gap < near)
-    return robot_face.any(axis=1)
+    neighbour (:attr:`Kind.ROBOT`) and the robot's estimate lies within ``near`` of it,
+    ``(bₖ − aₖ·p̂)/‖aₖ‖ < near`` (one compiled pass over the robots)."""
+    n = len(estimates)
+    out = np.empty(n, np.bool_)
+    args = (np.ascontiguousarray(estimates, dtype=np.float64), np.ascontiguousarray(active), np.ascontiguousarray(cells.A),
+            np.ascontiguousarray(cells.b), np.ascontiguousarray(cells.kind), float(near), out)
+    if use_parallel(n):
+        _blocked_parallel(*args)
+    else:
+        _blocked_range(0, n, *args)
+    return out
+
+
+@numba.njit(cache=True, parallel=True)
+def _blocked_parallel(estimates, active, A, b, kind, near, out):
+    n = len(estimates)
+    for c in numba.prange((n + _CHUNK - 1) // _CHUNK):
+        _blocked_range(c * _CHUNK, min(n, (c + 1) * _CHUNK), estimates, active, A, b, kind, near, out)
+
+
+@numba.njit(cache=True)
+def _blocked_range(lo, hi, estimates, active, A, b, kind, near, out):
+    """:func:`blocked_by_robot` for robots ``lo … hi − 1``, rounded as the numpy expressions
+    ``b − einsum(a, p̂)`` and ``np.maximum(np.linalg.norm(a), 1e-12)`` round it."""
+    for i in range(lo, hi):
+        blocked = False
+        for c in range(active.shape[1]):
+            k = active[i, c]
+            if k < 0 or kind[i, k] != _ROBOT:
+                continue
+            a0, a1 = A[i, k, 0], A[i, k, 1]
+            norm = np.sqrt(a0 * a0 + a1 * a1)
+            gap = (b[i, k] - (a0 * estimates[i, 0] + a1 * estimates[i, 1])) / (norm if norm != norm or norm > 1e-12 else 1e-12)
+            blocked |= gap < near
+        out[i] = blocked
 
 
 def right_hand_goals(estimates: np.ndarray, goals: np.ndarray, angle: float) -> np.ndarray:
     """The goals turned clockwise by ``angle`` [rad] about each robot."""
     c, s = np.cos(angle), np.sin(angle)
     turn = np.array([[c, s], [-s, c]])
-    return (goals - estimates) @ turn.T + estimates
+    return row_products(goals - estimates, turn.T) + estimates
 
 
 def on_obstacle_face(active: np.ndarray, cells) -> np.ndarray:
@@ -61,16 +95,16 @@ def on_obstacle_face(active: np.ndarray, cells) -> np.ndarray:
 def turned_projection(estimates: np.ndarray, targets: np.ndarray, proj: Projection, cells: Cells, driving: np.ndarray,
                       params: RightHandParams) -> Projection:
     """``proj`` with the blocked ``driving`` robots' targets turned right and projected
-    again (only their rows are projected)."""
-    turn = blocked_by_robot(estimates, proj.active, cells, params.face_near) & driving & ~proj.empty
-    if not turn.any():
-        return proj
+    again (only their rows are turned and projected)."""
+    turn = blocked_by_robot(estimates, proj.active, cells, params.face_near)
+    turn &= driving
+    turn &= ~proj.empty
     rows = np.flatnonzero(turn)
+    if len(rows) == 0:
+        return proj
     goals = right_hand_goals(estimates[rows], targets[rows], np.deg2rad(params.angle))
-    turned = project_onto_cells(goals, cell_rows(cells, rows))
-    keep = rows[~turned.empty]
     point, active = proj.point.copy(), proj.active.copy()
-    point[keep], active[keep] = turned.point[~turned.empty], turned.active[~turned.empty]
+    project_rows_into(point, active, rows, goals, cells)
     return Projection(point, proj.empty, active)
 
 

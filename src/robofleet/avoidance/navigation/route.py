@@ -48,11 +48,13 @@ from __future__ import annotations
 from dataclasses import dataclass
 from itertools import combinations
 
+import numba
 import numpy as np
 from scipy.sparse.csgraph import dijkstra
 from shapely.geometry import Polygon
 from shapely.ops import nearest_points
 
+from ..kernels import use_parallel
 from .params import RouteParams
 
 _EPS = 1e-9
@@ -95,21 +97,57 @@ def halfplanes(polygons: list[np.ndarray]) -> Halfplanes:
 
 def segments_free(a: np.ndarray, b: np.ndarray, obstacles: Halfplanes) -> np.ndarray:
     """Whether each segment ``a[s] → b[s]`` misses the interior of every obstacle
-    (``(S,)`` booleans; Cyrus–Beck clipping of ``a + t (b − a)``, ``t ∈ [0, 1]``)."""
+    (``(S,)`` booleans; Cyrus–Beck clipping of ``a + t (b − a)``, ``t ∈ [0, 1]``): one
+    compiled pass per segment, segments in parallel (:mod:`..kernels`)."""
     if obstacles.A.shape[0] == 0:
         return np.ones(len(a), bool)
-    d = b - a
-    na = np.einsum("okc,sc->sok", obstacles.A, a) - obstacles.b[None]  # n·a − c  (S, O, K)
-    nd = np.einsum("okc,sc->sok", obstacles.A, d)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        t = -na / nd
-    entering, leaving = nd < -_EPS, nd > _EPS
-    t_lo = np.max(np.where(entering, t, 0.0), axis=2)
-    t_hi = np.min(np.where(leaving, t, 1.0), axis=2)
-    outside_parallel = np.any((np.abs(nd) <= _EPS) & (na >= -_EPS), axis=2)
-    length = np.linalg.norm(d, axis=1)[:, None]
-    crosses = ~outside_parallel & ((t_hi - t_lo) * length > 1e-6)
-    return ~np.any(crosses, axis=1)
+    out = np.empty(len(a), np.bool_)
+    args = (np.ascontiguousarray(a, dtype=np.float64), np.ascontiguousarray(b, dtype=np.float64),
+            np.ascontiguousarray(obstacles.A, dtype=np.float64), np.ascontiguousarray(obstacles.b, dtype=np.float64), out)
+    if use_parallel(len(a)):
+        _segments_free_parallel(*args)
+    else:
+        _segments_free_range(0, len(a), *args)
+    return out
+
+
+_SEGMENT_CHUNK = 1024  # segments per parallel task
+
+
+@numba.njit(cache=True, parallel=True)
+def _segments_free_parallel(a, b, A, c, out):
+    n = len(a)
+    for chunk in numba.prange((n + _SEGMENT_CHUNK - 1) // _SEGMENT_CHUNK):
+        _segments_free_range(chunk * _SEGMENT_CHUNK, min(n, (chunk + 1) * _SEGMENT_CHUNK), a, b, A, c, out)
+
+
+@numba.njit(cache=True)
+def _segments_free_range(lo, hi, a, b, A, c, out):
+    """:func:`segments_free` for segments ``lo … hi − 1``: with ``n·a − c`` and ``n·d``
+    rounded as ``einsum`` rounds them, ``t_in`` the largest of the entering rows' ``t`` and
+    0 for the others (NaN if any is NaN, as ``np.max``), ``t_out`` likewise the smallest
+    with 1; a segment crosses an obstacle when no row holds it outside while parallel and
+    ``(t_out − t_in) ‖d‖ > 1e-6``."""
+    for s in range(lo, hi):
+        a0, a1 = a[s, 0], a[s, 1]
+        d0, d1 = b[s, 0] - a0, b[s, 1] - a1
+        length = np.sqrt(d0 * d0 + d1 * d1)
+        free = True
+        for o in range(A.shape[0]):
+            t_in, t_out, outside_parallel = -np.inf, np.inf, False
+            for k in range(A.shape[1]):
+                na = (A[o, k, 0] * a0 + A[o, k, 1] * a1) - c[o, k]
+                nd = A[o, k, 0] * d0 + A[o, k, 1] * d1
+                entering, leaving = nd < -_EPS, nd > _EPS
+                low = -na / nd if entering else 0.0
+                high = -na / nd if leaving else 1.0
+                t_in = np.nan if (low != low or t_in != t_in) else max(t_in, low)
+                t_out = np.nan if (high != high or t_out != t_out) else min(t_out, high)
+                outside_parallel |= abs(nd) <= _EPS and na >= -_EPS
+            if not outside_parallel and (t_out - t_in) * length > 1e-6:
+                free = False
+                break
+        out[s] = free
 
 
 def exit_points(points: np.ndarray, planes: Halfplanes) -> np.ndarray:

@@ -161,6 +161,9 @@ def parking_targets(estimates: np.ndarray, goals: np.ndarray, parked: np.ndarray
         The goal tolerance: a returning robot holds once its estimate is this close.
     """
     still, resting = state.observe(estimates, params)
+    if not parked.any():  # what the rule below leaves when nobody is parked: all hold, no counts
+        state.mode[:], state.linger[:], state.clear[:] = HOLD, 0, 0
+        return goals.copy(), np.zeros(len(estimates), bool)
     pairs = close_pairs(estimates, params.near, local_box) if parked.any() else np.zeros((0, 2), np.int64)
     pressing = np.linalg.norm(estimates[pairs[:, 0]] - estimates[pairs[:, 1]], axis=1) <= params.press
     pairs = pairs[~still[pairs[:, 1]] & (pressing | ~resting[pairs[:, 1]])]  # who holds still, or rests away, is not waiting to pass
