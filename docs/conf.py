@@ -27,6 +27,10 @@ autodoc_default_options = {"members": True, "undoc-members": False, "show-inheri
 napoleon_use_ivar = True
 autodoc_member_order = "bysource"
 autodoc_typehints = "description"
+# Each API page lists its members in the summary tables at its top; keeping every function
+# and class out of the tables of contents keeps the sidebar, which every page carries, to
+# the pages and their sections (with them the site takes about 40 % longer to build).
+toc_object_entries = False
 autodoc_mock_imports = ["casadi"]
 napoleon_google_docstring = False
 napoleon_numpy_docstring = True
