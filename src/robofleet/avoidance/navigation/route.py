@@ -172,6 +172,7 @@ class Roadmap:
 
     def __init__(self, polygons: list[np.ndarray], margin: float, bounds: tuple[float, float, float, float], clearance: float,
                  passage: float = 0.0, sight_factor: float = RouteParams.sight_factor, gap_factor: float = RouteParams.gap_factor):
+        self.polygons, self.clearance, self.passage, self.gap_factor = polygons, clearance, passage, gap_factor
         grown = grown_polygons(polygons, margin)
         self.grown_planes = halfplanes(grown) if grown else _NO_PLANES
         sight = grown_polygons(polygons, sight_factor * clearance) + gap_blockers(polygons, gap_factor * (clearance + passage))
