@@ -10,6 +10,7 @@ from shapely.geometry import LineString, Point, Polygon
 from shapely.ops import nearest_points
 
 import robofleet
+from robofleet.avoidance.navigation import detour
 from robofleet.avoidance.navigation.detour import (
     DetourParams,
     Detours,
@@ -188,3 +189,32 @@ def test_the_detour_side_follows_the_neighbours_mean_not_its_jitter(seed):
     the side flips from step to step (the robot would dither in place)."""
     assert side_flips(True, seed) == 0
     assert side_flips(False, seed) > 10
+
+
+def closed_gap_mapping() -> dict:
+    """A box from the bottom up to y = −0.5 and a parked robot 1.25 m above its top face
+    (the pair clearance plus the obstacle clearance is 1.34 m), with five more parked above
+    it 0.8 m apart; robot 6 crosses from (−2, 0.2) to (2, 0.2), through the gap by the
+    straight line. Yielding is off, so only a detour round the box gets it home."""
+    parked = [[0.0, 0.75 + 0.8 * k] for k in range(6)]
+    return {"family": "avoidance", "name": "closed_gap", "method": "buavc", "max_steps": 900,
+            "workspace": {"bounds": [-5, -5, 5, 5], "obstacle_sigma": 0.1, "obstacles": [{"center": [0, -2.0], "size": [1, 3]}]},
+            "robots": {"n": 7, "radius": 0.2, "v_max": 0.4, "sigma": 0.1,
+                       "layout": {"kind": "explicit", "starts": parked + [[-2.0, 0.2]], "goals": parked + [[2.0, 0.2]]}},
+            "navigation": {"yielding": {"enabled": False}}}
+
+
+@pytest.mark.parametrize("seed", range(2))
+def test_a_robot_goes_round_the_box_when_a_parked_robot_closes_the_gap_beside_it(seed):
+    """Closed loop: the crossing robot detours round the box and every robot is home, without contact."""
+    result = robofleet.simulate(robofleet.load_scenario(closed_gap_mapping()), seed=seed).results
+    assert result["success"] and result["collision_steps"] == 0
+
+
+@pytest.mark.slow
+def test_without_the_passage_walls_the_robot_stays_at_the_closed_gap(monkeypatch):
+    """The same scene, seeds 0–1, with the walls removed: the sight lines pass through the
+    gap beside the parked robot and the crossing robot never gets home."""
+    monkeypatch.setattr(detour, "passage_walls", lambda *args: [])
+    results = [robofleet.simulate(robofleet.load_scenario(closed_gap_mapping()), seed=s).results for s in range(2)]
+    assert not any(r["success"] for r in results)

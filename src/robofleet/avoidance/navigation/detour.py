@@ -27,9 +27,10 @@ decentralized and communication-free:
   goal and the yielding rule moves it).
 * **Anchored discs**: each disc is centred on the still neighbour's running mean (the
   still test's mean, :class:`.yielding.StillTracker`), not on its latest estimate. A
-  still neighbour's estimate jitters by σ per step and its mean by about σ/5, so a gap
-  the disc nearly closes does not open and close from step to step, sending the
-  sub-goal from one side of the neighbour to the other.
+  still neighbour's estimate jitters by σ per step and its mean (weight
+  ``α = 2 / still_steps`` per step) by ``σ √(α / (2 − α))``, about σ/7 at the shipped 50
+  steps, so a gap the disc nearly closes does not open and close from step to step,
+  sending the sub-goal from one side of the neighbour to the other.
 * **Passages** (:func:`passage_walls`): the route's passage rule
   (:func:`.route.gap_blockers`) applied to the still neighbours. The cells keep a
   robot's estimate ``2 β`` from a neighbour's and ``c`` from an obstacle, so for a
@@ -43,8 +44,10 @@ decentralized and communication-free:
 What the stage guarantees: the detour sub-goal only replaces the route's sub-goal, which
 the model's cell-keeping controller keeps inside the cell (the chance constraint is
 untouched); a detour lasts at most ``steps`` steps; the path it follows is the shortest on
-the visibility graph of the map and the discs, so with the still neighbours as they are it
-reaches the goal whenever the graph connects them. Single and double integrators use it;
+the visibility graph of the map, the discs and the passage walls, so with the still
+neighbours as they are it reaches the goal whenever that graph connects them; a wall
+closes only a gap narrower than the route's passage width, with the neighbour counted as
+an obstacle of radius ``2 β − c``. Single and double integrators use it;
 unicycles do not (:mod:`.pipeline`). Only blocked robots re-plan, so the cost is a few
 small graphs per step. Measured effects: docs/results/avoidance.md "Measurements behind the navigation stages".
 """

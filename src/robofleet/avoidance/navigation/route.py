@@ -168,6 +168,9 @@ class Roadmap:
         narrower than ``gap_factor (clearance + passage)`` are closed to sight lines.
     sight_factor, gap_factor:
         As in :class:`RouteParams`.
+
+    The polygons, the clearance and the passage rule (``passage``, ``gap_factor``) are kept
+    as attributes: the detour stage closes the gaps beside still neighbours by the same rule.
     """
 
     def __init__(self, polygons: list[np.ndarray], margin: float, bounds: tuple[float, float, float, float], clearance: float,
