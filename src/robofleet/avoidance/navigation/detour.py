@@ -176,11 +176,13 @@ def shortest_first_step(graph: DetourGraph) -> tuple[np.ndarray | None, float]:
 def remembered_obstacles(estimates: np.ndarray, anchors: np.ndarray, still: np.ndarray, i: int, memory: np.ndarray,
                          goal: np.ndarray, local_box: float, radius: float) -> np.ndarray:
     """Robot ``i``'s still obstacles ``(M, 2)``, each at its ``anchor`` (the still test's
-    running mean): the still neighbours in its local box (those closer than ``radius`` to
-    its goal left out: parked on it, they yield) and the ones it remembers from earlier
-    steps that now lie outside its box (where it cannot see whether they moved); inside
-    the box only what it sees now counts."""
-    seen = still & np.all(np.abs(estimates - estimates[i]) <= local_box, axis=1)
+    running mean): the still neighbours anchored in its local box (those closer than
+    ``radius`` to its goal left out: parked on it, they yield) and the ones it remembers
+    from earlier steps that now lie outside its box (where it cannot see whether they
+    moved); inside the box only what it sees now counts. The box test is on the anchors,
+    the points kept, so a remembered anchor is dropped when the neighbour's anchor is back
+    in the box, never kept beside it."""
+    seen = still & np.all(np.abs(anchors - estimates[i]) <= local_box, axis=1)
     seen[i] = False
     seen &= np.linalg.norm(anchors - goal, axis=1) > radius
     out_of_sight = memory[np.any(np.abs(memory - estimates[i]) > local_box, axis=1)]
