@@ -25,12 +25,29 @@ decentralized and communication-free:
   The disc radius is the pair clearance ``2 β`` the cells keep between two estimates;
   a neighbour closer than that to the goal is left out (it is parked on or near the
   goal and the yielding rule moves it).
+* **Anchored discs**: each disc is centred on the still neighbour's running mean (the
+  still test's mean, :class:`.yielding.StillTracker`), not on its latest estimate. A
+  still neighbour's estimate jitters by σ per step and its mean (weight
+  ``α = 2 / still_steps`` per step) by ``σ √(α / (2 − α))``, about σ/7 at the shipped 50
+  steps, so a gap the disc nearly closes does not open and close from step to step,
+  sending the sub-goal from one side of the neighbour to the other.
+* **Passages** (:func:`passage_walls`): the route's passage rule
+  (:func:`.route.gap_blockers`) applied to the still neighbours. The cells keep a
+  robot's estimate ``2 β`` from a neighbour's and ``c`` from an obstacle, so for a
+  robot passing by, a neighbour is an obstacle of radius ``2 β − c``; a gap narrower
+  than ``gap_factor (c + passage)`` between such a disc and an obstacle, or between two
+  such discs, gets a thin wall across it. Without the walls a sight line passes
+  wherever the sight discs (``sight_factor · 2 β``) and the obstacles' sight polygons
+  (``sight_factor · c``) leave a sliver, which is up to ``(1 − sight_factor)(2 β + c)``
+  narrower than the robot needs, with no room for the noise.
 
 What the stage guarantees: the detour sub-goal only replaces the route's sub-goal, which
 the model's cell-keeping controller keeps inside the cell (the chance constraint is
 untouched); a detour lasts at most ``steps`` steps; the path it follows is the shortest on
-the visibility graph of the map and the discs, so with the still neighbours as they are it
-reaches the goal whenever the graph connects them. Single and double integrators use it;
+the visibility graph of the map, the discs and the passage walls, so with the still
+neighbours as they are it reaches the goal whenever that graph connects them; a wall
+closes only a gap narrower than the route's passage width, with the neighbour counted as
+an obstacle of radius ``2 β − c``. Single and double integrators use it;
 unicycles do not (:mod:`.pipeline`). Only blocked robots re-plan, so the cost is a few
 small graphs per step. Measured effects: docs/results/avoidance.md "Measurements behind the navigation stages".
 """
@@ -67,11 +84,13 @@ def disc_polygons(centres: np.ndarray, radius: np.ndarray | float) -> list[np.nd
 @dataclass(frozen=True)
 class DetourGraph:
     """The visibility graph of one re-plan: ``points`` = [estimate, goal, nodes...],
-    ``lengths`` of the free segments (``inf`` where blocked) and the discs' sight polygons."""
+    ``lengths`` of the free segments (``inf`` where blocked), the discs' sight polygons and
+    the walls across the passages they close (:func:`passage_walls`)."""
 
     points: np.ndarray
     lengths: np.ndarray
     discs: list[np.ndarray]
+    walls: list[np.ndarray]
 
 
 def _inside(points: np.ndarray, planes: Halfplanes) -> np.ndarray:
@@ -93,15 +112,32 @@ def _pair_lengths(a: np.ndarray, b: np.ndarray, planes: list[Halfplanes], seen_a
     return np.where(free, np.linalg.norm(a[ia] - b[ib], axis=1), np.inf).reshape(len(a), len(b))
 
 
+def passage_walls(roadmap: route.Roadmap, centres: np.ndarray, radius: float) -> list[np.ndarray]:
+    """Thin walls across the gaps too narrow to pass between a still neighbour (at
+    ``centres``, pair clearance ``radius``) and an obstacle or another still neighbour:
+    the route's passage rule (:func:`.route.gap_blockers`, closing gaps narrower than
+    ``gap_factor (c + passage)``) with each neighbour an obstacle of radius
+    ``radius − c`` (module docstring, "Passages")."""
+    core = disc_polygons(centres, max(radius - roadmap.clearance, 1e-3))
+    width = roadmap.gap_factor * (roadmap.clearance + roadmap.passage)
+    walls = []
+    for k, disc in enumerate(core):
+        for other in core[k + 1:] + list(roadmap.polygons):
+            walls += route.gap_blockers([disc, other], width)
+    return walls
+
+
 def detour_graph(roadmap: route.Roadmap, estimate: np.ndarray, goal: np.ndarray, centres: np.ndarray,
                  radius: float, params: DetourParams) -> DetourGraph:
     """The graph of :func:`detour_subgoal` for one robot: static nodes outside the
     discs' sight polygons plus each disc's vertices at ``node_factor · radius`` (inside
-    the workspace, outside the grown obstacles and the other discs). Static node pairs
-    reuse the roadmap's visibility and are only tested against the discs."""
+    the workspace, outside the grown obstacles and the other discs), with the passages the
+    discs close walled off (:func:`passage_walls`). Static node pairs reuse the roadmap's
+    visibility and are only tested against the discs and the walls."""
     sight_r = np.minimum(params.sight_factor * radius, 0.95 * np.linalg.norm(centres - estimate, axis=1))
     discs = disc_polygons(centres, sight_r)
-    disc_planes = halfplanes(discs)
+    walls = passage_walls(roadmap, centres, radius)
+    disc_planes = halfplanes(discs + walls)
     keep = ~_inside(roadmap.nodes, disc_planes)
     static = roadmap.nodes[keep]
     extra = np.concatenate(disc_polygons(centres, params.node_factor * radius))
@@ -121,7 +157,7 @@ def detour_graph(roadmap: route.Roadmap, estimate: np.ndarray, goal: np.ndarray,
         old = roadmap.node_edges[np.ix_(keep, keep)]
         lengths[len(ends):, len(ends):] = np.where(np.isfinite(old), _pair_lengths(static, static, [disc_planes]), np.inf)
     np.fill_diagonal(lengths, np.inf)
-    return DetourGraph(np.vstack([ends, static]), lengths, discs)
+    return DetourGraph(np.vstack([ends, static]), lengths, discs, walls)
 
 
 def shortest_first_step(graph: DetourGraph) -> tuple[np.ndarray | None, float]:
@@ -137,17 +173,20 @@ def shortest_first_step(graph: DetourGraph) -> tuple[np.ndarray | None, float]:
     return graph.points[node], float(dist[1] - dist[node])
 
 
-def remembered_obstacles(estimates: np.ndarray, still: np.ndarray, i: int, memory: np.ndarray, goal: np.ndarray,
-                         local_box: float, radius: float) -> np.ndarray:
-    """Robot ``i``'s still obstacles ``(M, 2)``: the still neighbours in its local box
-    (those closer than ``radius`` to its goal left out: parked on it, they yield) and
-    the ones it remembers from earlier steps that now lie outside its box (where it
-    cannot see whether they moved); inside the box only what it sees now counts."""
-    seen = still & np.all(np.abs(estimates - estimates[i]) <= local_box, axis=1)
+def remembered_obstacles(estimates: np.ndarray, anchors: np.ndarray, still: np.ndarray, i: int, memory: np.ndarray,
+                         goal: np.ndarray, local_box: float, radius: float) -> np.ndarray:
+    """Robot ``i``'s still obstacles ``(M, 2)``, each at its ``anchor`` (the still test's
+    running mean): the still neighbours anchored in its local box (those closer than
+    ``radius`` to its goal left out: parked on it, they yield) and the ones it remembers
+    from earlier steps that now lie outside its box (where it cannot see whether they
+    moved); inside the box only what it sees now counts. The box test is on the anchors,
+    the points kept, so a remembered anchor is dropped when the neighbour's anchor is back
+    in the box, never kept beside it."""
+    seen = still & np.all(np.abs(anchors - estimates[i]) <= local_box, axis=1)
     seen[i] = False
-    seen &= np.linalg.norm(estimates - goal, axis=1) > radius
+    seen &= np.linalg.norm(anchors - goal, axis=1) > radius
     out_of_sight = memory[np.any(np.abs(memory - estimates[i]) > local_box, axis=1)]
-    return np.vstack([estimates[seen], out_of_sight])
+    return np.vstack([anchors[seen], out_of_sight])
 
 
 def detour_subgoal(roadmap: route.Roadmap, estimate: np.ndarray, goal: np.ndarray, obstacles: np.ndarray,
@@ -190,7 +229,8 @@ class Detours:
             return sub, to_go
         sub, to_go = sub.copy(), to_go.copy()
         for i in rows:
-            self.memory[i] = remembered_obstacles(estimates, still, i, self.memory[i], self.goals[i], self.local_box, self.radius)
+            self.memory[i] = remembered_obstacles(estimates, self.tracker.mean, still, i, self.memory[i], self.goals[i],
+                                                  self.local_box, self.radius)
             point, rest = detour_subgoal(self.roadmap, estimates[i], self.goals[i], self.memory[i], self.radius, p)
             if point is None:  # no still obstacle left (or no way round): back to the roadmap
                 self.left[i], self.memory[i] = 0, self.memory[i][:0]

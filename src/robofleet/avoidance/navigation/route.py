@@ -206,10 +206,14 @@ class Roadmap:
         narrower than ``gap_factor (clearance + passage)`` are closed to sight lines.
     sight_factor, gap_factor:
         As in :class:`RouteParams`.
+
+    The polygons, the clearance and the passage rule (``passage``, ``gap_factor``) are kept
+    as attributes: the detour stage closes the gaps beside still neighbours by the same rule.
     """
 
     def __init__(self, polygons: list[np.ndarray], margin: float, bounds: tuple[float, float, float, float], clearance: float,
                  passage: float = 0.0, sight_factor: float = RouteParams.sight_factor, gap_factor: float = RouteParams.gap_factor):
+        self.polygons, self.clearance, self.passage, self.gap_factor = polygons, clearance, passage, gap_factor
         grown = grown_polygons(polygons, margin)
         self.grown_planes = halfplanes(grown) if grown else _NO_PLANES
         sight = grown_polygons(polygons, sight_factor * clearance) + gap_blockers(polygons, gap_factor * (clearance + passage))
