@@ -207,6 +207,8 @@ class Roadmap:
     sight_factor, gap_factor:
         As in :class:`RouteParams`.
 
+    Notes
+    -----
     The polygons, the clearance and the passage rule (``passage``, ``gap_factor``) are kept
     as attributes: the detour stage closes the gaps beside still neighbours by the same rule.
     """
