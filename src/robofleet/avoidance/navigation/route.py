@@ -229,21 +229,49 @@ class Roadmap:
         ``‖p̂ − v‖ + D_i(v)`` (module docstring) —, the path length ``D_i`` left after it
         (0 for the goal) and whether anything was visible at all. Segments start and end
         where the estimate and the goal leave the sight polygons (:func:`exit_points`;
-        ``seen_goals``, the goals' exit points, when the caller keeps them)."""
+        ``seen_goals``, the goals' exit points, when the caller keeps them).
+
+        Only robots that do not see their goal look at the nodes, and each tests its nodes
+        in order of ``‖p̂ − v‖ + D_i(v)`` (:meth:`best_visible_nodes`), so the first visible
+        one is the minimiser: the same sub-goal as testing every node, for a few tests."""
         n, n_nodes = len(estimates), len(self.nodes)
         seen_from = exit_points(estimates, self.sight)
         seen_goals = exit_points(goals, self.sight) if seen_goals is None else seen_goals
         goal_free = segments_free(seen_from, seen_goals, self.sight)
         if n_nodes == 0:
             return goals.copy(), np.zeros(n), np.ones(n, bool)
-        ia = np.repeat(np.arange(n), n_nodes)
-        free = segments_free(seen_from[ia], np.tile(self.nodes, (n, 1)), self.sight).reshape(n, n_nodes)
-        total = np.where(free, np.linalg.norm(estimates[:, None] - self.nodes[None], axis=2) + costs, np.inf)
-        best = np.argmin(total, axis=1)
-        found = np.isfinite(total[np.arange(n), best])
+        total = np.linalg.norm(estimates[:, None] - self.nodes[None], axis=2) + costs
+        best, found = self.best_visible_nodes(seen_from, total, ~goal_free)
         use_node = ~goal_free & found
         sub = np.where(use_node[:, None], self.nodes[best], goals)
         return sub, np.where(use_node, costs[np.arange(n), best], 0.0), goal_free | found
+
+    def best_visible_nodes(self, seen_from: np.ndarray, total: np.ndarray, wanted: np.ndarray,
+                           chunk: int = 8) -> tuple[np.ndarray, np.ndarray]:
+        """For each ``wanted`` robot, the node minimising ``total`` ``(N, V)`` among those
+        free to see from ``seen_from`` (the lowest index among equal totals, as
+        ``argmin``), and whether one was found. Nodes are tested ``chunk`` at a time in
+        ascending (stable) order of ``total``; a robot stops at its first visible node
+        (every later node has a total at least as large) or at its first infinite total."""
+        n = len(total)
+        best, found = np.zeros(n, np.intp), np.zeros(n, bool)
+        rows = np.flatnonzero(wanted)
+        if len(rows) == 0:
+            return best, found
+        order = np.argsort(total[rows], axis=1, kind="stable")
+        for start in range(0, total.shape[1], chunk):
+            cols = order[:, start:start + chunk]
+            finite = np.isfinite(total[rows[:, None], cols])
+            free = segments_free(np.repeat(seen_from[rows], cols.shape[1], axis=0), self.nodes[cols.ravel()],
+                                 self.sight).reshape(cols.shape) & finite
+            hit = free.any(axis=1)
+            best[rows[hit]] = cols[hit, np.argmax(free[hit], axis=1)]
+            found[rows[hit]] = True
+            going = ~hit & finite.all(axis=1)
+            rows, order = rows[going], order[going]
+            if len(rows) == 0:
+                break
+        return best, found
 
 
 class Route:
