@@ -61,10 +61,14 @@ _EPS = 1e-9
 @dataclass(frozen=True)
 class Halfplanes:
     """Convex obstacles as padded half-planes ``A x ≤ b`` (``(O, K, 2)``, ``(O, K)``);
-    padding rows are ``0 · x ≤ 1`` (always true)."""
+    padding rows are ``0 · x ≤ 1`` (always true). ``lo``, ``hi`` ``(O, 2)``: the
+    obstacles' bounding boxes when known (:func:`segments_free` then skips the pairs
+    whose boxes miss the segment's)."""
 
     A: np.ndarray
     b: np.ndarray
+    lo: np.ndarray | None = None
+    hi: np.ndarray | None = None
 
 
 def grown_polygons(polygons: list[np.ndarray], margin: float) -> list[np.ndarray]:
@@ -90,26 +94,42 @@ def halfplanes(polygons: list[np.ndarray]) -> Halfplanes:
         normal = np.column_stack([edge[:, 1], -edge[:, 0]])
         normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), _EPS)
         A[o, : len(p)], b[o, : len(p)] = normal, np.sum(normal * p, axis=1)
-    return Halfplanes(A, b)
+    lo = np.array([p.min(axis=0) for p in polygons]).reshape(-1, 2)
+    hi = np.array([p.max(axis=0) for p in polygons]).reshape(-1, 2)
+    return Halfplanes(A, b, lo, hi)
 
 
 def segments_free(a: np.ndarray, b: np.ndarray, obstacles: Halfplanes) -> np.ndarray:
     """Whether each segment ``a[s] → b[s]`` misses the interior of every obstacle
-    (``(S,)`` booleans; Cyrus–Beck clipping of ``a + t (b − a)``, ``t ∈ [0, 1]``)."""
-    if obstacles.A.shape[0] == 0:
+    (``(S,)`` booleans; Cyrus–Beck clipping of ``a + t (b − a)``, ``t ∈ [0, 1]``).
+
+    With the obstacles' bounding boxes known, only the segment–obstacle pairs whose boxes
+    overlap are clipped: a segment outside an obstacle's box cannot cross its interior."""
+    if obstacles.A.shape[0] == 0 or len(a) == 0:
         return np.ones(len(a), bool)
-    d = b - a
-    na = np.einsum("okc,sc->sok", obstacles.A, a) - obstacles.b[None]  # n·a − c  (S, O, K)
-    nd = np.einsum("okc,sc->sok", obstacles.A, d)
+    if obstacles.lo is None:
+        return ~_crossing(a[:, None], (b - a)[:, None], obstacles.A[None], obstacles.b[None]).any(axis=1)
+    pad = 1e-6
+    near = np.all((np.minimum(a, b)[:, None] <= obstacles.hi[None] + pad) & (np.maximum(a, b)[:, None] >= obstacles.lo[None] - pad), axis=2)
+    s, o = np.nonzero(near)
+    crossing = _crossing(a[s], (b - a)[s], obstacles.A[o], obstacles.b[o])
+    return np.bincount(s[crossing], minlength=len(a)) == 0
+
+
+def _crossing(a: np.ndarray, d: np.ndarray, A: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Whether segments ``a + t d``, ``t ∈ [0, 1]``, cross the interiors of the convex
+    polygons ``A x ≤ b`` (``a``, ``d`` ``(..., 2)``; ``A`` ``(..., K, 2)``, ``b``
+    ``(..., K)``, broadcast together) by more than 10⁻⁶ m."""
+    na = np.sum(A * a[..., None, :], axis=-1) - b  # n·a − c
+    nd = np.sum(A * d[..., None, :], axis=-1)
     with np.errstate(divide="ignore", invalid="ignore"):
         t = -na / nd
     entering, leaving = nd < -_EPS, nd > _EPS
-    t_lo = np.max(np.where(entering, t, 0.0), axis=2)
-    t_hi = np.min(np.where(leaving, t, 1.0), axis=2)
-    outside_parallel = np.any((np.abs(nd) <= _EPS) & (na >= -_EPS), axis=2)
-    length = np.linalg.norm(d, axis=1)[:, None]
-    crosses = ~outside_parallel & ((t_hi - t_lo) * length > 1e-6)
-    return ~np.any(crosses, axis=1)
+    t_lo = np.max(np.where(entering, t, 0.0), axis=-1)
+    t_hi = np.min(np.where(leaving, t, 1.0), axis=-1)
+    outside_parallel = np.any((np.abs(nd) <= _EPS) & (na >= -_EPS), axis=-1)
+    length = np.linalg.norm(d, axis=-1)
+    return ~outside_parallel & ((t_hi - t_lo) * length > 1e-6)
 
 
 def exit_points(points: np.ndarray, planes: Halfplanes) -> np.ndarray:
