@@ -64,3 +64,23 @@ def test_ordered_search_tests_a_fraction_of_the_segments(monkeypatch):
     starts = np.array(room_scene(20000)["robots"]["layout"]["starts"])
     roadmap.subgoals(starts, goals, costs)
     assert sum(tested) - len(starts) < 0.5 * len(starts) * len(roadmap.nodes)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_bounding_box_cull_gives_the_same_verdicts(seed):
+    """Random convex polygons and random segments (some from a polygon's vertices, some
+    of zero length): clipping only the pairs whose boxes meet gives every verdict that
+    clipping all pairs gives."""
+    from robofleet.avoidance.navigation.route import Halfplanes, halfplanes
+    from robofleet.avoidance.random_scenarios import random_convex_polygon
+
+    rng = np.random.default_rng(300 + seed)
+    polygons = [np.asarray(random_convex_polygon(rng, rng.uniform(-3, 3, 2), rng.uniform(0.2, 1.0))) for _ in range(8)]
+    planes = halfplanes(polygons)
+    assert planes.lo is not None
+    every_pair = Halfplanes(planes.A, planes.b)
+    a, b = rng.uniform(-4, 4, (400, 2)), rng.uniform(-4, 4, (400, 2))
+    a[:40] = np.concatenate(polygons)[rng.integers(sum(map(len, polygons)), size=40)]
+    b[40:60] = a[40:60]
+    np.testing.assert_array_equal(segments_free(a, b, planes), segments_free(a, b, every_pair))
+    assert not segments_free(a, b, planes).all() and segments_free(a, b, planes).any()
