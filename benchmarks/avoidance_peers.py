@@ -1,17 +1,8 @@
 """B-UAVC, robofleet's ORCA and RVO2's ORCA side by side on the same random cluttered scenes.
 
-Three random scene generators (every scene a scenario mapping drawn from its seed; single
-integrators, r_s = 0.2 m, v_max = 0.4 m/s, Δt = 0.1 s, the authors' δ = 0.1, σ = 0.1 m,
-σ_o = 0.1 m; step budget by the shipped straight-line rule,
-:func:`robofleet.avoidance.spec.straight_line_budget`):
-
-* ``polygons`` — :func:`robofleet.avoidance.random_scenarios.random_scenario`: 8–16 robots
-  in the authors' random antipodal swap among 2–6 random convex polygons;
-* ``boxes`` — the same swap among 5–10 random boxes (sides 0.4–1.2 m, any yaw, at least
-  0.9 m of free gap between any two);
-* ``room`` — a walled 12 × 6 m room with a jittered grid of 0.3–0.6 m pillars (some left
-  out), 8–16 robots from random free points of one end to random free points of the other
-  (half of them each way).
+The three random scene generators of :mod:`robofleet.avoidance.random_scenarios`
+(``polygons``, ``boxes``, ``room``; every scene a scenario mapping drawn from its seed,
+single integrators, the authors' δ, σ, σ_o, step budget by the shipped straight-line rule).
 
 Each scene runs with
 
@@ -36,9 +27,13 @@ the end; **travel time** — mean arrival time of the robots,
 over the scenes every method brought home (paired); **contacts** — robot–robot contact
 pair-steps (centres closer than 2 r_s), robot–obstacle and robot–wall contact steps (centre
 closer than r_s to a polygon or outside the walls shrunk by r_s), judged on TRUE positions
-with :data:`CONTACT_TOL`, the scenes with any contact and the deepest overlap.
+with :data:`CONTACT_TOL`, the scenes with any contact and the deepest overlap; **CPU per
+scene** — process CPU time of one method's run (loading and simulating), mean and largest.
+Below each generator's rows: the seeds where B-UAVC did not bring every robot home, and
+the scenes left out because the antipodal sampler found no start for some robot (a crowded
+sector among the boxes; the layout is drawn by the run's seed, so every method skips them).
 
-Run: ``python benchmarks/avoidance_peers.py [--scenes 20] [--first-seed 20000] [--generators polygons boxes room] [--orca-noise] [--jobs 1]``
+Run: ``python benchmarks/avoidance_peers.py [--scenes 20] [--first-seed 20000] [--generators polygons boxes room] [--buavc-only] [--orca-noise] [--jobs 1]``
 (needs ``pip install 'robofleet[bench]'`` for ``pyrvo``; every run is seeded, ``--jobs``
 does not change a figure).
 """
@@ -55,80 +50,11 @@ from avoidance_liveness import clopper_pearson
 
 import robofleet
 from robofleet.avoidance.orca import OrcaParams, preferred_velocities
-from robofleet.avoidance.random_scenarios import random_scenario
-from robofleet.avoidance.spec import TRAVEL_TIME_MULTIPLE
+from robofleet.avoidance.random_scenarios import DT, GENERATORS, RADIUS, TOLERANCE, V_MAX
 from robofleet.core import geometry
-from robofleet.core.spec_blocks import ObstacleSpec
+from robofleet.core.errors import ScenarioError
 
-RADIUS, V_MAX, DT, TOLERANCE = 0.2, 0.4, 0.1, 0.1
 ORCA = OrcaParams()
-ROOM = (6.0, 3.0)
-
-
-# ---------------------------------------------------------------------------------------
-# the scene generators
-# ---------------------------------------------------------------------------------------
-def base_mapping(name: str, bounds, obstacles: list[dict], n: int, layout: dict, longest_trip: float) -> dict:
-    steps = int(np.ceil(TRAVEL_TIME_MULTIPLE["single_integrator"] * longest_trip / V_MAX / DT - 1e-9))
-    return {"family": "avoidance", "name": name, "method": "buavc", "delta": 0.1, "dt": DT, "max_steps": steps,
-            "goal_tolerance": TOLERANCE, "local_box": 2.0, "record_cells": False,
-            "workspace": {"bounds": bounds, "obstacle_sigma": 0.1, "obstacles": obstacles},
-            "robots": {"n": n, "radius": RADIUS, "v_max": V_MAX, "sigma": 0.1, "layout": layout}}
-
-
-def box_scene(seed: int) -> dict:
-    """The authors' random antipodal swap among 5–10 random boxes."""
-    rng = np.random.default_rng(seed)
-    n = int(rng.integers(8, 17))
-    boxes, placed = [], []
-    for _ in range(int(rng.integers(5, 11))):
-        for _ in range(200):
-            c, size = rng.uniform(-3.8, 3.8, 2), rng.uniform(0.4, 1.2, 2)
-            reach = 0.5 * float(np.hypot(*size))
-            if all(np.linalg.norm(c - o) >= reach + r + 0.9 for o, r in placed):
-                placed.append((c, reach))
-                boxes.append({"center": np.round(c, 4).tolist(), "size": np.round(size, 4).tolist(), "yaw": round(float(rng.uniform(0, np.pi / 2)), 4)})
-                break
-    return base_mapping(f"boxes_{seed}", [-5, -5, 5, 5], boxes, n, {"kind": "antipodal", "r_min": 0.3, "r_max": 4.7}, 2 * 4.7)
-
-
-def room_scene(seed: int) -> dict:
-    """A walled room with a jittered grid of pillars; half the robots cross each way."""
-    rng = np.random.default_rng(seed)
-    hx, hy = ROOM
-    pillars = []
-    for x in np.linspace(-3.0, 3.0, 5):
-        for y in np.linspace(-1.5, 1.5, 3):
-            if rng.random() < 0.8:
-                c, side = np.array([x, y]) + rng.uniform(-0.3, 0.3, 2), float(rng.uniform(0.3, 0.6))
-                pillars.append({"center": np.round(c, 4).tolist(), "size": [round(side, 4)] * 2, "yaw": round(float(rng.uniform(0, np.pi / 2)), 4)})
-    polygons = [ObstacleSpec(**p).polygon() for p in pillars]
-    n = int(rng.integers(8, 17))
-    left, right = free_points(rng, n, (-hx, -4.0), polygons), free_points(rng, n, (4.0, hx), polygons)
-    half = n // 2
-    starts = np.vstack([left[:half], right[half:]])
-    goals = np.vstack([right[:half], left[half:]])
-    layout = {"kind": "explicit", "starts": starts.round(4).tolist(), "goals": goals.round(4).tolist()}
-    return base_mapping(f"room_{seed}", [-hx, -hy, hx, hy], pillars, n, layout, float(np.linalg.norm(starts - goals, axis=1).max()))
-
-
-def free_points(rng, n: int, x_range: tuple[float, float], polygons: list[np.ndarray]) -> np.ndarray:
-    """``n`` points in the strip ``x_range`` of the room, 0.8 m apart, 0.75 m from every
-    pillar and 0.45 m from the walls (more than the clearances a B-UAVC start needs)."""
-    hx, hy = ROOM
-    out: list[np.ndarray] = []
-    while len(out) < n:
-        p = np.array([rng.uniform(*x_range), rng.uniform(-hy, hy)])
-        if hx - abs(p[0]) < 0.45 or hy - abs(p[1]) < 0.45:
-            continue
-        if min(float(geometry.polygon_distance(p[None], q)[0]) for q in polygons) < 0.75:
-            continue
-        if all(np.linalg.norm(p - q) >= 0.8 for q in out):
-            out.append(p)
-    return np.array(out)
-
-
-GENERATORS = {"polygons": random_scenario, "boxes": box_scene, "room": room_scene}
 
 
 # ---------------------------------------------------------------------------------------
@@ -176,11 +102,13 @@ def pair_contact_counts(positions: np.ndarray) -> np.ndarray:
 
 
 def buavc_run(mapping: dict, seed: int) -> tuple[dict, np.ndarray, np.ndarray]:
+    cpu = time.process_time()
     spec = robofleet.load_scenario(mapping)
     trace = robofleet.simulate(spec, seed=seed)
+    cpu = time.process_time() - cpu
     goals = np.asarray(trace.metadata["goals"])
     row = judged(trace.arrays["positions"], spec.robots.sigma, goals, trace.arrays["arrival_steps"], spec.workspace.build())
-    return row, np.asarray(trace.metadata["starts"]), goals
+    return {**row, "cpu": cpu, "seed": seed}, np.asarray(trace.metadata["starts"]), goals
 
 
 def explicit(mapping: dict, starts: np.ndarray, goals: np.ndarray, noise: bool) -> dict:
@@ -193,16 +121,19 @@ def explicit(mapping: dict, starts: np.ndarray, goals: np.ndarray, noise: bool) 
 
 
 def orca_run(mapping: dict, seed: int) -> dict:
+    cpu = time.process_time()
     spec = robofleet.load_scenario(mapping)
     trace = robofleet.simulate(spec, seed=seed)
-    return judged(trace.arrays["positions"], spec.robots.sigma, np.asarray(trace.metadata["goals"]),
-                  trace.arrays["arrival_steps"], spec.workspace.build())
+    cpu = time.process_time() - cpu
+    return {**judged(trace.arrays["positions"], spec.robots.sigma, np.asarray(trace.metadata["goals"]),
+                     trace.arrays["arrival_steps"], spec.workspace.build()), "cpu": cpu, "seed": seed}
 
 
 def rvo2_run(mapping: dict, starts: np.ndarray, goals: np.ndarray) -> dict:
     """RVO2 from the same starts with the same polygons and the same arrival rule."""
     import pyrvo
 
+    cpu = time.process_time()
     workspace = robofleet.load_scenario(mapping).workspace.build()
     sim = pyrvo.RVOSimulator(DT, ORCA.neighbor_dist, ORCA.max_neighbors, ORCA.time_horizon, ORCA.time_horizon_obst, RADIUS, V_MAX)
     for polygon in workspace.obstacles:
@@ -225,14 +156,20 @@ def rvo2_run(mapping: dict, starts: np.ndarray, goals: np.ndarray) -> dict:
         if arrived.all():
             break
     track = np.array(positions)
-    return judged(track, 0.0, goals, arrivals, workspace)
+    cpu = time.process_time() - cpu
+    return {**judged(track, 0.0, goals, arrivals, workspace), "cpu": cpu, "seed": -1}
 
 
-def scene_rows(job: tuple[str, int, bool]) -> dict:
-    """Every method on one scene: ``{method: figures}``."""
-    generator, seed, orca_noise = job
+def scene_rows(job: tuple[str, int, bool, bool]) -> dict:
+    """Every method on one scene (only B-UAVC with ``buavc_only``): ``{method: figures}``."""
+    generator, seed, orca_noise, buavc_only = job
     mapping = GENERATORS[generator](seed)
-    row, starts, goals = buavc_run(mapping, seed)
+    try:
+        row, starts, goals = buavc_run(mapping, seed)
+    except ScenarioError as error:  # the antipodal sampler found no start for some robot
+        return {"no layout": {"seed": seed, "error": str(error)}}
+    if buavc_only:
+        return {"B-UAVC": row}
     out = {"B-UAVC": row, "robofleet ORCA": orca_run(explicit(mapping, starts, goals, False), seed), "RVO2": rvo2_run(mapping, starts, goals)}
     if orca_noise:
         out["robofleet ORCA, noisy estimates"] = orca_run(explicit(mapping, starts, goals, True), seed)
@@ -242,8 +179,8 @@ def scene_rows(job: tuple[str, int, bool]) -> dict:
 # ---------------------------------------------------------------------------------------
 # the table
 # ---------------------------------------------------------------------------------------
-HEADER = ("| scenes | method | home [CP 95 %] | all arrived once | robots home | travel time, paired [s] | contacts robot–robot / –obstacle / –wall (steps) | scenes with a contact | deepest overlap [mm] |\n"
-          "|---|---|---:|---:|---:|---:|---:|---:|---:|")
+HEADER = ("| scenes | method | home [CP 95 %] | all arrived once | robots home | travel time, paired [s] | contacts robot–robot / –obstacle / –wall (steps) | scenes with a contact | deepest overlap [mm] | CPU per scene, mean / max [s] |\n"
+          "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|")
 
 
 def table_rows(label: str, scenes: list[dict]) -> list[str]:
@@ -260,7 +197,7 @@ def table_rows(label: str, scenes: list[dict]) -> list[str]:
         once = sum(r["all_arrived"] for r in runs)
         rows.append(f"| {label} | {m} | {k}/{n} = {100 * k / n:.0f} % [{100 * lo:.0f}, {100 * hi:.0f}] | {once}/{n} | "
                     f"{100 * np.mean([r['robots_home'] for r in runs]):.1f} % | {travel} | {contacts} | {touched} | "
-                    f"{1e3 * max(r['deepest'] for r in runs):.3g} |")
+                    f"{1e3 * max(r['deepest'] for r in runs):.3g} | {np.mean([r['cpu'] for r in runs]):.1f} / {max(r['cpu'] for r in runs):.1f} |")
     return rows
 
 
@@ -270,6 +207,7 @@ def main() -> None:
     ap.add_argument("--first-seed", type=int, default=20000)
     ap.add_argument("--generators", nargs="+", choices=list(GENERATORS), default=list(GENERATORS))
     ap.add_argument("--orca-noise", action="store_true", help="also robofleet's ORCA on the scene's noisy estimates")
+    ap.add_argument("--buavc-only", action="store_true", help="only B-UAVC (no ORCA, no RVO2)")
     ap.add_argument("--jobs", type=int, default=1, help="worker processes (results do not depend on it)")
     args = ap.parse_args()
     print(machine())
@@ -278,14 +216,18 @@ def main() -> None:
     seeds = range(args.first_seed, args.first_seed + args.scenes)
     every: list[dict] = []
     for generator in args.generators:
-        jobs = [(generator, s, args.orca_noise) for s in seeds]
+        jobs = [(generator, s, args.orca_noise, args.buavc_only) for s in seeds]
         if args.jobs > 1:
             with ProcessPoolExecutor(args.jobs) as pool:
                 scenes = list(pool.map(scene_rows, jobs))
         else:
             scenes = [scene_rows(j) for j in jobs]
+        unplaced = [s["no layout"]["seed"] for s in scenes if "no layout" in s]
+        scenes = [s for s in scenes if "no layout" not in s]
         every += scenes
         print("\n".join(table_rows(f"{generator} {seeds.start}–{seeds.stop - 1}", scenes)), flush=True)
+        print(f"B-UAVC not home: {[s['B-UAVC']['seed'] for s in scenes if not s['B-UAVC']['home']]}; "
+              f"no start layout (left out): {unplaced}", flush=True)
     if len(args.generators) > 1:
         print("\n".join(table_rows("all", every)))
     print(f"wall time: {time.perf_counter() - t0:.0f} s")

@@ -63,10 +63,14 @@ _EPS = 1e-9
 @dataclass(frozen=True)
 class Halfplanes:
     """Convex obstacles as padded half-planes ``A x ≤ b`` (``(O, K, 2)``, ``(O, K)``);
-    padding rows are ``0 · x ≤ 1`` (always true)."""
+    padding rows are ``0 · x ≤ 1`` (always true). ``lo``, ``hi`` ``(O, 2)``: the
+    obstacles' bounding boxes when known (:func:`segments_free` then skips the pairs
+    whose boxes miss the segment's)."""
 
     A: np.ndarray
     b: np.ndarray
+    lo: np.ndarray | None = None
+    hi: np.ndarray | None = None
 
 
 def grown_polygons(polygons: list[np.ndarray], margin: float) -> list[np.ndarray]:
@@ -92,18 +96,27 @@ def halfplanes(polygons: list[np.ndarray]) -> Halfplanes:
         normal = np.column_stack([edge[:, 1], -edge[:, 0]])
         normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), _EPS)
         A[o, : len(p)], b[o, : len(p)] = normal, np.sum(normal * p, axis=1)
-    return Halfplanes(A, b)
+    lo = np.array([p.min(axis=0) for p in polygons]).reshape(-1, 2)
+    hi = np.array([p.max(axis=0) for p in polygons]).reshape(-1, 2)
+    return Halfplanes(A, b, lo, hi)
 
 
 def segments_free(a: np.ndarray, b: np.ndarray, obstacles: Halfplanes) -> np.ndarray:
     """Whether each segment ``a[s] → b[s]`` misses the interior of every obstacle
     (``(S,)`` booleans; Cyrus–Beck clipping of ``a + t (b − a)``, ``t ∈ [0, 1]``): one
-    compiled pass per segment, segments in parallel (:mod:`..kernels`)."""
-    if obstacles.A.shape[0] == 0:
+    compiled pass per segment, segments in parallel (:mod:`..kernels`).
+
+    With the obstacles' bounding boxes known, only the obstacles whose boxes (grown by
+    10⁻⁶ m) meet the segment's box are clipped: a segment that crosses an obstacle's
+    interior by more than 10⁻⁶ m has points inside it, so inside its box."""
+    if obstacles.A.shape[0] == 0 or len(a) == 0:
         return np.ones(len(a), bool)
+    count = obstacles.A.shape[0]
+    lo = np.full((count, 2), -np.inf) if obstacles.lo is None else obstacles.lo
+    hi = np.full((count, 2), np.inf) if obstacles.hi is None else obstacles.hi
     out = np.empty(len(a), np.bool_)
-    args = (np.ascontiguousarray(a, dtype=np.float64), np.ascontiguousarray(b, dtype=np.float64),
-            np.ascontiguousarray(obstacles.A, dtype=np.float64), np.ascontiguousarray(obstacles.b, dtype=np.float64), out)
+    f64 = lambda x: np.ascontiguousarray(x, dtype=np.float64)  # noqa: E731
+    args = (f64(a), f64(b), f64(obstacles.A), f64(obstacles.b), f64(lo), f64(hi), out)
     if use_parallel(len(a)):
         _segments_free_parallel(*args)
     else:
@@ -112,28 +125,33 @@ def segments_free(a: np.ndarray, b: np.ndarray, obstacles: Halfplanes) -> np.nda
 
 
 _SEGMENT_CHUNK = 1024  # segments per parallel task
+_BOX_PAD = 1e-6  # [m] the obstacles' boxes grown by the crossing length that counts
 
 
 @numba.njit(cache=True, parallel=True)
-def _segments_free_parallel(a, b, A, c, out):
+def _segments_free_parallel(a, b, A, c, lo, hi, out):
     n = len(a)
     for chunk in numba.prange((n + _SEGMENT_CHUNK - 1) // _SEGMENT_CHUNK):
-        _segments_free_range(chunk * _SEGMENT_CHUNK, min(n, (chunk + 1) * _SEGMENT_CHUNK), a, b, A, c, out)
+        _segments_free_range(chunk * _SEGMENT_CHUNK, min(n, (chunk + 1) * _SEGMENT_CHUNK), a, b, A, c, lo, hi, out)
 
 
 @numba.njit(cache=True)
-def _segments_free_range(lo, hi, a, b, A, c, out):
-    """:func:`segments_free` for segments ``lo … hi − 1``: with ``n·a − c`` and ``n·d``
-    rounded as ``einsum`` rounds them, ``t_in`` the largest of the entering rows' ``t`` and
-    0 for the others (NaN if any is NaN, as ``np.max``), ``t_out`` likewise the smallest
-    with 1; a segment crosses an obstacle when no row holds it outside while parallel and
+def _segments_free_range(first, last, a, b, A, c, lo, hi, out):
+    """:func:`segments_free` for segments ``first … last − 1``: obstacles whose box misses
+    the segment's are skipped; for the others, with ``n·a − c`` and ``n·d`` rounded as
+    ``einsum`` rounds them, ``t_in`` the largest of the entering rows' ``t`` and 0 for the
+    others (NaN if any is NaN, as ``np.max``), ``t_out`` likewise the smallest with 1; a
+    segment crosses an obstacle when no row holds it outside while parallel and
     ``(t_out − t_in) ‖d‖ > 1e-6``."""
-    for s in range(lo, hi):
+    for s in range(first, last):
         a0, a1 = a[s, 0], a[s, 1]
         d0, d1 = b[s, 0] - a0, b[s, 1] - a1
+        x_lo, x_hi, y_lo, y_hi = min(a0, b[s, 0]), max(a0, b[s, 0]), min(a1, b[s, 1]), max(a1, b[s, 1])
         length = np.sqrt(d0 * d0 + d1 * d1)
         free = True
         for o in range(A.shape[0]):
+            if x_lo > hi[o, 0] + _BOX_PAD or x_hi < lo[o, 0] - _BOX_PAD or y_lo > hi[o, 1] + _BOX_PAD or y_hi < lo[o, 1] - _BOX_PAD:
+                continue
             t_in, t_out, outside_parallel = -np.inf, np.inf, False
             for k in range(A.shape[1]):
                 na = (A[o, k, 0] * a0 + A[o, k, 1] * a1) - c[o, k]
@@ -273,21 +291,49 @@ class Roadmap:
         ``‖p̂ − v‖ + D_i(v)`` (module docstring) —, the path length ``D_i`` left after it
         (0 for the goal) and whether anything was visible at all. Segments start and end
         where the estimate and the goal leave the sight polygons (:func:`exit_points`;
-        ``seen_goals``, the goals' exit points, when the caller keeps them)."""
+        ``seen_goals``, the goals' exit points, when the caller keeps them).
+
+        Only robots that do not see their goal look at the nodes, and each tests its nodes
+        in order of ``‖p̂ − v‖ + D_i(v)`` (:meth:`best_visible_nodes`), so the first visible
+        one is the minimiser: the same sub-goal as testing every node, for a few tests."""
         n, n_nodes = len(estimates), len(self.nodes)
         seen_from = exit_points(estimates, self.sight)
         seen_goals = exit_points(goals, self.sight) if seen_goals is None else seen_goals
         goal_free = segments_free(seen_from, seen_goals, self.sight)
         if n_nodes == 0:
             return goals.copy(), np.zeros(n), np.ones(n, bool)
-        ia = np.repeat(np.arange(n), n_nodes)
-        free = segments_free(seen_from[ia], np.tile(self.nodes, (n, 1)), self.sight).reshape(n, n_nodes)
-        total = np.where(free, np.linalg.norm(estimates[:, None] - self.nodes[None], axis=2) + costs, np.inf)
-        best = np.argmin(total, axis=1)
-        found = np.isfinite(total[np.arange(n), best])
+        total = np.linalg.norm(estimates[:, None] - self.nodes[None], axis=2) + costs
+        best, found = self.best_visible_nodes(seen_from, total, ~goal_free)
         use_node = ~goal_free & found
         sub = np.where(use_node[:, None], self.nodes[best], goals)
         return sub, np.where(use_node, costs[np.arange(n), best], 0.0), goal_free | found
+
+    def best_visible_nodes(self, seen_from: np.ndarray, total: np.ndarray, wanted: np.ndarray,
+                           chunk: int = 8) -> tuple[np.ndarray, np.ndarray]:
+        """For each ``wanted`` robot, the node minimising ``total`` ``(N, V)`` among those
+        free to see from ``seen_from`` (the lowest index among equal totals, as
+        ``argmin``), and whether one was found. Nodes are tested ``chunk`` at a time in
+        ascending (stable) order of ``total``; a robot stops at its first visible node
+        (every later node has a total at least as large) or at its first infinite total."""
+        n = len(total)
+        best, found = np.zeros(n, np.intp), np.zeros(n, bool)
+        rows = np.flatnonzero(wanted)
+        if len(rows) == 0:
+            return best, found
+        order = np.argsort(total[rows], axis=1, kind="stable")
+        for start in range(0, total.shape[1], chunk):
+            cols = order[:, start:start + chunk]
+            finite = np.isfinite(total[rows[:, None], cols])
+            free = segments_free(np.repeat(seen_from[rows], cols.shape[1], axis=0), self.nodes[cols.ravel()],
+                                 self.sight).reshape(cols.shape) & finite
+            hit = free.any(axis=1)
+            best[rows[hit]] = cols[hit, np.argmax(free[hit], axis=1)]
+            found[rows[hit]] = True
+            going = ~hit & finite.all(axis=1)
+            rows, order = rows[going], order[going]
+            if len(rows) == 0:
+                break
+        return best, found
 
 
 class Route:
