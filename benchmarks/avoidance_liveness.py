@@ -15,9 +15,11 @@ scenarios shipped with before the liveness rules (:data:`EARLIER_BUDGETS`; what 
 got) next to the shipped scenario (liveness rules on, budget by the straight-line rule),
 and the mean travel time of the runs both finish, paired by seed.
 
-Run: ``python benchmarks/avoidance_liveness.py [--seeds 20] [--random 20] [--first-seed 0] [--random-first-seeds 1000 3000] [--scenarios ten_boxes ...] [--liveness off] [--budget-factor 4] [--before-after] [--jobs 2]``
-(``--scenarios`` with no name runs only the random scenarios; every run is seeded, so any
-seed range can be re-run and ``--jobs`` does not change a figure).
+Run: ``python benchmarks/avoidance_liveness.py [--seeds 20] [--random 20] [--first-seed 0] [--random-first-seeds 1000 3000] [--scenarios ten_boxes ...] [--liveness off] [--budget-factor 4] [--before-after] [--generator polygons|boxes|room] [--jobs 2]``
+(``--scenarios`` with no name runs only the random scenarios; ``--generator boxes|room``
+draws them from another generator of :mod:`robofleet.avoidance.random_scenarios` (a seed
+whose layout cannot be placed is left out and named); every run is seeded, so any seed
+range can be re-run and ``--jobs`` does not change a figure).
 """
 
 from __future__ import annotations
@@ -34,7 +36,8 @@ import yaml
 from scipy.stats import beta
 
 import robofleet
-from robofleet.avoidance.random_scenarios import random_scenario
+from robofleet.avoidance.random_scenarios import GENERATORS, random_scenario, scene
+from robofleet.core.errors import ScenarioError
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
@@ -85,17 +88,26 @@ def _run_pair(job: tuple[dict, int]) -> dict:
     return run(*job)
 
 
+def _run_random_pair(job: tuple[dict, int]) -> dict | None:
+    """:func:`run` of a random scene; ``None`` when its layout cannot be placed (the start
+    sampler finds no free start for some robot)."""
+    try:
+        return run(*job)
+    except ScenarioError:
+        return None
+
+
 JOBS = 1
 """Worker processes for the runs (``--jobs``); each run is seeded, so results do not depend on it."""
 
 
-def run_all(mappings: list[dict], seeds: list[int]) -> list[dict]:
-    """:func:`run` of every ``(mapping, seed)`` pair, in order, on :data:`JOBS` processes."""
+def run_all(mappings: list[dict], seeds: list[int], one=_run_pair) -> list[dict]:
+    """``one`` (:func:`run`) of every ``(mapping, seed)`` pair, in order, on :data:`JOBS` processes."""
     jobs = list(zip(mappings, seeds))
     if JOBS <= 1:
-        return [run(m, s) for m, s in jobs]
+        return [one(job) for job in jobs]
     with ProcessPoolExecutor(JOBS) as pool:
-        return list(pool.map(_run_pair, jobs))
+        return list(pool.map(one, jobs))
 
 
 def paired_travel_time(before: list[dict], after: list[dict]) -> str:
@@ -141,9 +153,14 @@ def before_after(name: str, mapping: dict, seeds: range, delta: float) -> list[s
             f"|  | travel time, seeds both finish: {paired_travel_time(rows_b, rows_a)} |  |  |  |  |  |  |  |  |"]
 
 
-def random_rows(rnd: range, liveness: str, budget_factor: float) -> list[dict]:
-    """Runs of the random scenarios of ``rnd`` (scenario seed = run seed)."""
-    return run_all([with_liveness(random_scenario(s), liveness, budget_factor) for s in rnd], list(rnd))
+def random_rows(rnd: range, liveness: str, budget_factor: float, generator: str = "polygons") -> list[dict]:
+    """Runs of the random scenes of ``generator`` for the seeds of ``rnd`` (scenario seed =
+    run seed); seeds whose layout cannot be placed are named and left out."""
+    rows = run_all([with_liveness(scene(generator, s), liveness, budget_factor) for s in rnd], list(rnd), _run_random_pair)
+    unplaced = [s for s, row in zip(rnd, rows) if row is None]
+    if unplaced:
+        print(f"{generator}: no layout for seeds {unplaced} (left out)", flush=True)
+    return [row for row in rows if row is not None]
 
 
 def random_before_after(rnd: range) -> list[str]:
@@ -167,8 +184,11 @@ def main() -> None:
     ap.add_argument("--liveness", choices=["on", "off", "spec"], default="spec")
     ap.add_argument("--budget-factor", type=float, default=1.0, help="multiply every step budget (1 = as shipped)")
     ap.add_argument("--before-after", action="store_true", help="the paper's controller at the earlier budgets next to the shipped scenarios")
+    ap.add_argument("--generator", choices=sorted(GENERATORS), default="polygons", help="the random scenes' generator")
     ap.add_argument("--jobs", type=int, default=1, help="worker processes (results do not depend on it)")
     args = ap.parse_args()
+    if args.before_after and args.generator != "polygons":
+        ap.error("--before-after: expected the polygons generator (the earlier budgets are theirs), received --generator " + args.generator)
     JOBS = args.jobs
     print(f"machine: {platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}")
     print(HEADER)
@@ -186,7 +206,8 @@ def main() -> None:
         if args.before_after:
             print("\n".join(random_before_after(rnd)), flush=True)
         else:
-            print(summarise(f"random (seeds {rnd.start}–{rnd.stop - 1})", random_rows(rnd, args.liveness, args.budget_factor), 0.1), flush=True)
+            rows = random_rows(rnd, args.liveness, args.budget_factor, args.generator)
+            print(summarise(f"{args.generator} (seeds {rnd.start}–{rnd.stop - 1})", rows, 0.1), flush=True)
     print(f"wall time: {time.perf_counter() - t0:.0f} s")
 
 
