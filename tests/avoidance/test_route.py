@@ -84,3 +84,46 @@ def test_bounding_box_cull_gives_the_same_verdicts(seed):
     b[40:60] = a[40:60]
     np.testing.assert_array_equal(segments_free(a, b, planes), segments_free(a, b, every_pair))
     assert not segments_free(a, b, planes).all() and segments_free(a, b, planes).any()
+
+
+def box(x0: float, y0: float, x1: float, y1: float) -> np.ndarray:
+    return np.array([[x0, y0], [x1, y0], [x1, y1], [x0, y1]], float)
+
+
+def narrow_gap_route() -> tuple[route_module.Route, float]:
+    """A wall of two boxes across a 6 × 4 m workspace with one gap of 1.1 m: wider than the
+    2 c = 1.0 m the cells need, narrower than the 1.8 (c + passage) = 1.17 m the passage
+    rule keeps open. The goal lies behind the wall."""
+    clearance = 0.5
+    polygons = [box(-0.25, 0.55, 0.25, 2.5), box(-0.25, -2.5, 0.25, -0.55)]
+    roadmap = Roadmap(polygons, 1.15 * clearance, (-3.0, -2.0, 3.0, 2.0), clearance, passage=0.15)
+    return route_module.Route(roadmap, np.array([[2.0, 1.2]])), clearance
+
+
+def cells_fit(route: route_module.Route) -> Roadmap:
+    """The roadmap of ``route``'s obstacles with only the gaps narrower than ``2 c`` closed."""
+    r = route.roadmap
+    return Roadmap(r.polygons, 1.15 * r.clearance, (-3.0, -2.0, 3.0, 2.0), r.clearance, 0.0, gap_factor=2.0)
+
+
+def test_route_leads_through_a_gap_only_the_cells_can_pass():
+    """Seeded estimates on the near side of the wall: the passage rule closes the only way,
+    so the roadmap finds nothing; the route must still lead through the gap (a sub-goal
+    visible from the estimate, not the goal behind the box, with a finite path length
+    left), and once through, straight to the goal."""
+    route, clearance = narrow_gap_route()
+    near = route.roadmap.nodes[:, 0] < 0.0
+    assert near.any() and np.all(np.isinf(route.costs[0, near])), "the passage rule closes the gap"
+    narrow = cells_fit(route)
+    rng = np.random.default_rng(7)
+    for estimate in np.column_stack([rng.uniform(-2.4, -0.9, 40), rng.uniform(-1.4, 1.4, 40)]):
+        sub, to_go = route.step(estimate[None])
+        assert not np.allclose(sub[0], route.goals[0]), f"from {estimate} the route hands over the goal behind the box"
+        assert np.isfinite(to_go[0]) and to_go[0] >= np.linalg.norm(route.goals[0] - estimate) - 1e-9
+        seen_from = exit_points(estimate[None], narrow.sight)
+        assert segments_free(seen_from, sub, narrow.sight)[0]
+        assert sub[0, 0] <= clearance * 1.15 + 0.25 + 1e-9, "the sub-goal lies on the near side of the gap"
+    beyond = np.array([[1.0, 0.0]])
+    sub, to_go = route.step(beyond)
+    np.testing.assert_allclose(sub, route.goals)
+    assert to_go[0] == pytest.approx(np.linalg.norm(route.goals[0] - beyond[0]))

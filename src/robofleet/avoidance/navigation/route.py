@@ -27,6 +27,11 @@ and the map.
   ``gap_factor (c + passage_sigmas σ)`` leaves the estimate no room to jitter in its cell;
   a thin wall along the shortest segment between the two obstacles closes it to every
   sight line.
+* **Narrow passages as the last way** (:meth:`Roadmap.narrow_passages`): a goal whose only
+  way from the robot runs through a closed gap that the cells can still pass (``2 c``
+  wide or more) leaves the robot no visible node with a finite cost to go. Such a robot
+  takes its sub-goal from a second roadmap whose passages close only the gaps narrower
+  than ``2 c`` (no robot's cell fits there), until the first roadmap routes it again.
 * **Cost to go** ``D_i(v)``: node-to-node shortest paths (Dijkstra from every node, once
   per workspace) closed with the free segments to each goal, once per run
   (:meth:`Roadmap.costs_to_goals`).
@@ -234,6 +239,7 @@ class Roadmap:
     def __init__(self, polygons: list[np.ndarray], margin: float, bounds: tuple[float, float, float, float], clearance: float,
                  passage: float = 0.0, sight_factor: float = RouteParams.sight_factor, gap_factor: float = RouteParams.gap_factor):
         self.polygons, self.clearance, self.passage, self.gap_factor = polygons, clearance, passage, gap_factor
+        self.margin, self.bounds, self.sight_factor = margin, bounds, sight_factor
         grown = grown_polygons(polygons, margin)
         self.grown_planes = halfplanes(grown) if grown else _NO_PLANES
         sight = grown_polygons(polygons, sight_factor * clearance) + gap_blockers(polygons, gap_factor * (clearance + passage))
@@ -245,6 +251,12 @@ class Roadmap:
         self.nodes = nodes[keep]
         self.node_edges = self._visibility(self.nodes, self.nodes)
         self.node_paths = self._shortest_paths(self.node_edges)
+
+    def narrow_passages(self) -> Roadmap:
+        """The same roadmap with only the gaps no cell can pass closed: narrower than
+        ``2 c`` (no noise margin). A cell keeps the robot ``c`` from both obstacles of a
+        gap, so a gap at least ``2 c`` wide is passable, however tightly."""
+        return Roadmap(self.polygons, self.margin, self.bounds, self.clearance, 0.0, self.sight_factor, 2.0)
 
     @staticmethod
     def _inside_grown(points: np.ndarray, grown: list[np.ndarray]) -> np.ndarray:
@@ -342,6 +354,8 @@ class Route:
     :meth:`step` returns each robot's sub-goal and its estimated remaining path length
     ``‖p̂ − v‖ + D_i(v)`` (the straight distance when the goal is visible), the progress
     measure the progress checker uses instead of the straight distance to the goal.
+    A robot for which the roadmap finds no way takes the :meth:`Roadmap.narrow_passages`
+    roadmap's sub-goal (module docstring), built the first time one is needed.
     """
 
     def __init__(self, roadmap: Roadmap, goals: np.ndarray):
@@ -349,11 +363,24 @@ class Route:
         self.costs = roadmap.costs_to_goals(goals)
         self.seen_goals = exit_points(goals, roadmap.sight)  # the goals do not move
         self.last = goals.copy(), np.zeros(len(goals))
+        self._narrow: tuple[Roadmap, np.ndarray, np.ndarray] | None = None
+
+    def narrow(self) -> tuple[Roadmap, np.ndarray, np.ndarray]:
+        """The narrow-passage roadmap, its costs to the goals and the goals' exit points."""
+        if self._narrow is None:
+            roadmap = self.roadmap.narrow_passages()
+            self._narrow = roadmap, roadmap.costs_to_goals(self.goals), exit_points(self.goals, roadmap.sight)
+        return self._narrow
 
     def step(self, estimates: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Sub-goals and remaining path lengths; a robot that sees nothing (its estimate
-        inside a grown obstacle) keeps its previous sub-goal."""
+        """Sub-goals and remaining path lengths; a robot for which the roadmap finds no way
+        takes the narrow-passage roadmap's, and one that sees nothing on either (its
+        estimate inside a grown obstacle) keeps its previous sub-goal."""
         sub, rest, seen = self.roadmap.subgoals(estimates, self.goals, self.costs, self.seen_goals)
+        lost = np.flatnonzero(~seen)
+        if len(lost):
+            roadmap, costs, seen_goals = self.narrow()
+            sub[lost], rest[lost], seen[lost] = roadmap.subgoals(estimates[lost], self.goals[lost], costs[lost], seen_goals[lost])
         sub, rest = np.where(seen[:, None], sub, self.last[0]), np.where(seen, rest, self.last[1])
         self.last = sub, rest
         return sub, np.linalg.norm(sub - estimates, axis=1) + rest
