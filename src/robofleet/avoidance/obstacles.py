@@ -77,6 +77,11 @@ class ObstacleSet:
         n, count = len(p), self.count
         if n == 0 or count == 0:
             return np.zeros(0, np.intp), np.zeros(0, np.intp)
+        finite = np.isfinite(p).all(axis=1)
+        if not finite.all():  # a NaN or infinite coordinate meets no obstacle (the test is false)
+            kept = np.flatnonzero(finite)
+            owner, index = self.near(p[kept], reach)
+            return kept[owner], index
         lo, hi = np.ascontiguousarray(self.lo, dtype=np.float64), np.ascontiguousarray(self.hi, dtype=np.float64)
         reach = float(reach)
         h = max(2.0 * reach, float(np.median(np.max(hi - lo, axis=1))), 1e-9)
