@@ -250,6 +250,16 @@ def _quad_2d(normals: np.ndarray, cov: np.ndarray) -> np.ndarray:
 
 
 @numba.njit(cache=True, inline="always")
+def face_excess(A, b, i, k, x0, x1):
+    """How far the point ``(x0, x1)`` lies beyond row ``k`` of robot ``i``'s cell,
+    ``(aₖ·x − bₖ)/max(‖aₖ‖, 1e-12)`` (negative inside), rounded as the numpy expressions
+    ``einsum(A, x) − b`` and ``np.maximum(np.linalg.norm(A), 1e-12)`` round it."""
+    a0, a1 = A[i, k, 0], A[i, k, 1]
+    norm = np.sqrt(a0 * a0 + a1 * a1)
+    return ((a0 * x0 + a1 * x1) - b[i, k]) / (norm if norm != norm or norm > 1e-12 else 1e-12)
+
+
+@numba.njit(cache=True, inline="always")
 def _near_wall(x, y, wall_a, wall_b, w, r):
     """Wall w is within R_loc of the point (:func:`_wall_rows`' test ``b_w − a_w·p ≤ R_loc``)."""
     return wall_b[w] - (wall_a[w, 0] * x + wall_a[w, 1] * y) <= r

@@ -21,7 +21,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from ..cell import Cells, Kind
+from ..cell import Cells, Kind, face_excess
 from ..kernels import use_parallel
 from ..projection import Projection, project_rows_into
 from .params import BandParams
@@ -60,16 +60,12 @@ def _deep_parallel(estimates, A, b, valid, kind, empty, depth, deep):
 @numba.njit(cache=True)
 def _deep_range(lo, hi, estimates, A, b, valid, kind, empty, depth, deep):
     """Robots ``lo … hi − 1`` with a non-empty cell whose estimate lies more than ``depth``
-    beyond one of its valid obstacle faces, ``(aₖ·p̂ − bₖ)/max(‖aₖ‖, 1e-12) > depth``, rounded
-    as the numpy expressions ``einsum(A, p̂) − b`` and ``np.maximum(np.linalg.norm(A), 1e-12)``."""
+    beyond one of its valid obstacle faces (:func:`~robofleet.avoidance.cell.face_excess` ``> depth``)."""
     for i in range(lo, hi):
         found = False
         if not empty[i]:
             for k in range(A.shape[1]):
                 if not valid[i, k] or kind[i, k] != _OBSTACLE:
                     continue
-                a0, a1 = A[i, k, 0], A[i, k, 1]
-                norm = np.sqrt(a0 * a0 + a1 * a1)
-                slack = (a0 * estimates[i, 0] + a1 * estimates[i, 1]) - b[i, k]
-                found |= slack / (norm if norm != norm or norm > 1e-12 else 1e-12) > depth
+                found |= face_excess(A, b, i, k, estimates[i, 0], estimates[i, 1]) > depth
         deep[i] = found

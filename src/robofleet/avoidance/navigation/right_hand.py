@@ -30,7 +30,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from ..cell import Cells, Kind
+from ..cell import Cells, Kind, face_excess
 from ..kernels import row_products, use_parallel
 from ..projection import Projection, project_onto_cells, project_rows_into
 from .params import RightHandParams
@@ -64,18 +64,16 @@ def _blocked_parallel(estimates, active, A, b, kind, near, out):
 
 @numba.njit(cache=True)
 def _blocked_range(lo, hi, estimates, active, A, b, kind, near, out):
-    """:func:`blocked_by_robot` for robots ``lo … hi − 1``, rounded as the numpy expressions
-    ``b − einsum(a, p̂)`` and ``np.maximum(np.linalg.norm(a), 1e-12)`` round it."""
+    """:func:`blocked_by_robot` for robots ``lo … hi − 1``: the gap ``(bₖ − aₖ·p̂)/‖aₖ‖`` is
+    exactly ``−``:func:`~robofleet.avoidance.cell.face_excess` (``x − y = −(y − x)`` in
+    floating point)."""
     for i in range(lo, hi):
         blocked = False
         for c in range(active.shape[1]):
             k = active[i, c]
             if k < 0 or kind[i, k] != _ROBOT:
                 continue
-            a0, a1 = A[i, k, 0], A[i, k, 1]
-            norm = np.sqrt(a0 * a0 + a1 * a1)
-            gap = (b[i, k] - (a0 * estimates[i, 0] + a1 * estimates[i, 1])) / (norm if norm != norm or norm > 1e-12 else 1e-12)
-            blocked |= gap < near
+            blocked |= -face_excess(A, b, i, k, estimates[i, 0], estimates[i, 1]) < near
         out[i] = blocked
 
 
