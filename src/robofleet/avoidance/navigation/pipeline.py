@@ -211,8 +211,7 @@ def detour_stage(t: TeamNavigation, s: StepState) -> None:
 def single_integrator_recovery(t: TeamNavigation, s: StepState) -> None:
     """Steer to the rotated target or the obstacle vertex while recovering (recovery starts in ``progress``)."""
     s.route_target = s.target
-    if np.any(t.mode != NORMAL):  # else every robot keeps its target
-        s.target = recovery_targets(s.p, s.target, t.mode, t.vertex)
+    s.target = recovery_targets(s.p, s.target, t.mode, t.vertex)
 
 
 def rotation_recovery(t: TeamNavigation, s: StepState) -> None:
@@ -262,8 +261,7 @@ def progress_stage(t: TeamNavigation, s: StepState) -> None:
     if stuck.any():
         grown = t.grown if not (t.navigating and t.route is not None) else None  # the roadmap already routes around obstacles
         start_recovery(stuck, s.p, s.route_target, s.cells, s.proj.active, t.mode, t.mode_left, t.vertex, t.deadlock, grown)
-    if np.any(t.mode != NORMAL):  # else no recovery to count down
-        count_down(s.p, t.mode, t.mode_left, t.vertex, max(t.tolerance, float(np.max(t.v_max)) * t.dt))
+    count_down(s.p, t.mode, t.mode_left, t.vertex, max(t.tolerance, float(np.max(t.v_max)) * t.dt))
 
 
 # -- the cell-keeping controllers ---------------------------------------------------------

@@ -32,7 +32,10 @@ CLOCKWISE_90 = np.array([[0.0, 1.0], [-1.0, 0.0]])  # R_z(−90°)
 
 def recovery_targets(estimates: np.ndarray, targets: np.ndarray, mode: np.ndarray, vertex: np.ndarray) -> np.ndarray:
     """The target each robot steers to this step: its target, the rotated target
-    (Eq. (51), robots in ``ROTATE``), or its obstacle vertex (robots in ``VERTEX``)."""
+    (Eq. (51), robots in ``ROTATE``), or its obstacle vertex (robots in ``VERTEX``);
+    ``targets`` itself while no robot recovers."""
+    if np.all(mode == NORMAL):
+        return targets
     g = targets.copy()
     rot = mode == ROTATE
     if rot.any():
@@ -70,7 +73,10 @@ def start_recovery(stuck: np.ndarray, estimates: np.ndarray, goals: np.ndarray, 
 
 def count_down(estimates: np.ndarray, mode: np.ndarray, mode_left: np.ndarray, vertex: np.ndarray, reach: float) -> None:
     """One step of every recovery: a robot within ``reach`` of its vertex ends its own;
-    every recovery loses a step and ends at zero (in place)."""
+    every recovery loses a step and ends at zero (in place; nothing to do while no robot
+    recovers)."""
+    if np.all(mode == NORMAL):
+        return
     heading_vertex = np.flatnonzero(mode == VERTEX)
     reached = heading_vertex[np.linalg.norm(vertex[heading_vertex] - estimates[heading_vertex], axis=1) <= reach]
     mode_left[reached] = 0
