@@ -84,6 +84,8 @@ class ObstacleSet:
             return kept[owner], index
         lo, hi = np.ascontiguousarray(self.lo, dtype=np.float64), np.ascontiguousarray(self.hi, dtype=np.float64)
         reach = float(reach)
+        if not 0.0 <= reach < np.inf:  # NaN, negative or infinite: no grid, the test itself
+            return _pairs_all(p, lo, hi, reach)
         h = max(2.0 * reach, float(np.median(np.max(hi - lo, axis=1))), 1e-9)
         buckets = _obstacle_buckets(p, lo, hi, reach, h, 16 * (n + count) + 4096)
         if buckets is None:
