@@ -1,8 +1,8 @@
 """The compiled passes of the navigation step equal, bit for bit, the numpy expressions
 they replace (the right-hand rule's blocked test and second projection, the band return,
-the goal checker's distances, the route's segment test, the blocked products of short
-rows), on random cells with empty cells, NaN estimates, zero rows and fleets large enough
-for the parallel kernels."""
+the goal checker's distances, the yielding stage's still and parked trackers, the route's
+segment test, the blocked products of short rows), on random cells with empty cells, NaN
+estimates, zero rows and fleets large enough for the parallel kernels."""
 
 from __future__ import annotations
 
@@ -14,8 +14,10 @@ from robofleet.avoidance.cell import Kind, cell_rows
 from robofleet.avoidance.kernels import BLAS_BLOCK, PARALLEL_MIN_ROBOTS, row_products
 from robofleet.avoidance.navigation.band import out_of_the_band
 from robofleet.avoidance.navigation.goal import GoalChecker, goal_distances
-from robofleet.avoidance.navigation.params import RightHandParams
+from robofleet.avoidance.navigation.params import RightHandParams, YieldingParams
+from robofleet.avoidance.navigation.progress import ParkedTest
 from robofleet.avoidance.navigation.right_hand import blocked_by_robot, right_hand_goals, turned_projection
+from robofleet.avoidance.navigation.yielding import ParkingState, StillTracker
 from robofleet.avoidance.navigation.route import Halfplanes, gap_blockers, grown_polygons, halfplanes, segments_free
 from robofleet.avoidance.projection import Projection, project_rows_into
 from robofleet.avoidance.random_scenarios import random_convex_polygon
@@ -207,3 +209,101 @@ def test_segment_test_is_the_numpy_expression(seed):
     for rows in (slice(0, 300), slice(None)):  # the serial and the parallel kernel
         np.testing.assert_array_equal(segments_free(a[rows], b[rows], planes), numpy_segments_free(a[rows], b[rows], planes))
     assert 0.2 < segments_free(a, b, planes).mean() < 0.9
+
+
+# -- the yielding stage's trackers -----------------------------------------------------------
+def numpy_still(mean, still, estimates, radius, steps):
+    """:class:`StillTracker`'s rule as numpy expressions: the new ``(mean, still)``."""
+    mean = mean.copy()
+    fresh = ~np.isfinite(mean[:, 0])
+    mean[fresh] = estimates[fresh]
+    mean += (estimates - mean) * (2.0 / steps)
+    return mean, np.where(np.linalg.norm(estimates - mean, axis=1) < radius, still + 1, 0)
+
+
+def numpy_parked(anchor, since, estimates, rest, mean, radius, steps):
+    """:class:`ParkedTest`'s rule as numpy expressions: the new ``(anchor, since, parked)``."""
+    if steps <= 0:
+        return anchor, since, np.zeros(len(estimates), bool)
+    anchor = anchor.copy()
+    anchored = np.isfinite(anchor[:, 0])
+    fresh = rest & ~anchored
+    anchor[fresh] = mean[fresh]
+    anchored |= fresh
+    with np.errstate(invalid="ignore"):
+        gone = anchored & (np.linalg.norm(estimates - np.where(anchored[:, None], anchor, 0.0), axis=1) > radius)
+    anchor[gone] = np.nan
+    since = np.where(anchored & ~gone, since + 1, 0)
+    return anchor, since, since >= steps
+
+
+def wandering_estimates(rng, n: int, dim: int, steps: int):
+    """Estimates of robots that sit, jitter, drift and jump, some NaN, some far away."""
+    base = rng.normal(size=(n, dim)) * 10.0 ** rng.uniform(-1, 3, (n, 1))
+    drift = rng.normal(size=(n, dim)) * np.where(rng.random((n, 1)) < 0.3, 0.2, 0.0)
+    for k in range(steps):
+        est = base + k * drift + rng.normal(size=(n, dim)) * rng.choice([0.0, 0.05, 0.5], (n, 1))
+        jump = rng.random(n) < 0.03
+        est[jump] += rng.normal(size=(jump.sum(), dim)) * 3.0
+        est[rng.random(n) < 0.01] = np.nan
+        yield est
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+@pytest.mark.parametrize("seed", range(3))
+def test_still_tracker_is_the_numpy_expression(dim, seed):
+    rng = np.random.default_rng(50 + seed)
+    n, radius, steps = 3000, float(rng.uniform(0.2, 1.0)), int(rng.integers(1, 6))
+    tracker = StillTracker.initial(n, dim)
+    mean, still = tracker.mean.copy(), tracker.still.copy()
+    for est in wandering_estimates(rng, n, dim, 25):
+        counts = tracker.observe(est, radius, steps)
+        mean, still = numpy_still(mean, still, est, radius, steps)
+        np.testing.assert_array_equal(tracker.mean, mean)
+        np.testing.assert_array_equal(counts, still)
+        assert counts.dtype == still.dtype
+    assert (still >= steps).any() and (still == 0).any()
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+@pytest.mark.parametrize("seed", range(3))
+def test_parked_test_is_the_numpy_expression(dim, seed):
+    rng = np.random.default_rng(60 + seed)
+    n, radius, steps = 3000, float(rng.uniform(0.3, 1.5)), int(rng.integers(0, 6))
+    test = ParkedTest.initial(n, dim)
+    anchor, since = test.anchor.copy(), test.since.copy()
+    mean = np.full((n, dim), np.nan)
+    for est in wandering_estimates(rng, n, dim, 25):
+        mean = np.where(np.isfinite(mean), 0.7 * mean + 0.3 * est, est)
+        rest = rng.random(n) < 0.4
+        parked = test.observe(est, rest, mean, radius, steps)
+        anchor, since, expected = numpy_parked(anchor, since, est, rest, mean, radius, steps)
+        np.testing.assert_array_equal(test.anchor, anchor)
+        np.testing.assert_array_equal(test.since, since)
+        np.testing.assert_array_equal(parked, expected)
+
+
+@pytest.mark.parametrize("parked_steps", [0, 4])
+@pytest.mark.parametrize("seed", range(3))
+def test_parking_observation_is_the_two_trackers_in_turn(parked_steps, seed):
+    """The fused pass of :meth:`ParkingState.observe` equals the still tracker's update
+    followed by the parked test on its new mean, as numpy expressions."""
+    rng = np.random.default_rng(70 + seed)
+    n = 3000
+    params = YieldingParams(still_radius=float(rng.uniform(0.2, 0.6)), still_steps=int(rng.integers(1, 5)),
+                            max_aside=float(rng.uniform(0.1, 1.0)), parked_steps=parked_steps)
+    state = ParkingState.initial(n)
+    mean, still, anchor, since = state.stillness.mean.copy(), state.stillness.still.copy(), state.resting.anchor.copy(), state.resting.since.copy()
+    seen = np.zeros(n, bool)
+    for est in wandering_estimates(rng, n, 2, 30):
+        got_still, got_resting = state.observe(est, params)
+        mean, still = numpy_still(mean, still, est, params.still_radius, params.still_steps)
+        rest = still >= params.still_steps
+        anchor, since, resting = numpy_parked(anchor, since, est, rest, mean, params.max_aside + params.still_radius, params.parked_steps)
+        np.testing.assert_array_equal(got_still, rest)
+        np.testing.assert_array_equal(got_resting, resting)
+        for got, expected in ((state.stillness.mean, mean), (state.stillness.still, still), (state.resting.anchor, anchor),
+                              (state.resting.since, since)):
+            np.testing.assert_array_equal(got, expected)
+        seen |= resting
+    assert seen.any() == (parked_steps > 0)

@@ -40,11 +40,19 @@ def goal_distances(points: np.ndarray, goals: np.ndarray) -> np.ndarray:
 @numba.njit(cache=True)
 def _goal_distances(points, goals, out):
     for i in range(len(points)):
-        total = 0.0
-        for c in range(points.shape[1]):
-            d = goals[i, c] - points[i, c]
-            total = d * d if c == 0 else total + d * d
-        out[i] = np.sqrt(total)
+        out[i] = row_distance(goals, points, i)
+
+
+@numba.njit(cache=True, inline="always")
+def row_distance(x, y, i):
+    """``‖x_i − y_i‖`` rounded as ``np.linalg.norm(x − y, axis=1)[i]`` rounds it: the squared
+    differences summed in order, then the root (the same for ``y − x``: a difference and its
+    negation have one square)."""
+    total = 0.0
+    for c in range(x.shape[1]):
+        d = x[i, c] - y[i, c]
+        total = d * d if c == 0 else total + d * d
+    return np.sqrt(total)
 
 
 @dataclass

@@ -42,7 +42,10 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numba
 import numpy as np
+
+from .goal import row_distance
 
 @dataclass(frozen=True)
 class DeadlockParams:
@@ -139,14 +142,34 @@ class ParkedTest:
     def observe(self, estimates: np.ndarray, rest: np.ndarray, mean: np.ndarray, radius: float, steps: int) -> np.ndarray:
         """Update with this step's estimates (``rest``: the still test holds; ``mean``:
         the running means) and return which robots count as parked ``(N,)``."""
-        if steps <= 0:
-            return np.zeros(len(estimates), bool)
-        anchored = np.isfinite(self.anchor[:, 0])
-        fresh = rest & ~anchored
-        self.anchor[fresh] = mean[fresh]
-        anchored |= fresh
-        gone = anchored & (np.linalg.norm(estimates - np.where(anchored[:, None], self.anchor, 0.0), axis=1) > radius)
-        self.anchor[gone], self.since[gone] = np.nan, 0
-        anchored &= ~gone
-        self.since = np.where(anchored, self.since + 1, 0)
-        return self.since >= steps
+        parked = np.zeros(len(estimates), np.bool_)
+        if steps > 0:
+            _parked_pass(np.ascontiguousarray(estimates, dtype=np.float64), np.ascontiguousarray(rest, dtype=np.bool_),
+                         np.ascontiguousarray(mean, dtype=np.float64), self.anchor, self.since, float(radius), int(steps), parked)
+        return parked
+
+
+@numba.njit(cache=True)
+def _parked_pass(estimates, rest, mean, anchor, since, radius, steps, parked):
+    """:meth:`ParkedTest.observe` for every robot, in place (one compiled pass)."""
+    for i in range(len(estimates)):
+        parked[i] = parked_row(i, estimates, rest[i], mean, anchor, since, radius, steps)
+
+
+@numba.njit(cache=True, inline="always")
+def parked_row(i, estimates, rest, mean, anchor, since, radius, steps):
+    """Robot ``i``'s step of :class:`ParkedTest`, in place on ``anchor[i]`` and ``since[i]``:
+    a robot without an anchor (``anchor[i, 0]`` not finite) that comes to rest (``rest``)
+    anchors at its running mean; an anchored robot whose estimate lies farther than
+    ``radius`` from the anchor loses it; ``since[i]`` counts the steps anchored (0 without
+    an anchor). Returns whether it counts as parked, ``since[i] ≥ steps``. The distance is
+    :func:`.goal.row_distance`, rounded as ``np.linalg.norm``."""
+    anchored = np.isfinite(anchor[i, 0])
+    if rest and not anchored:
+        anchor[i, :] = mean[i, :]
+        anchored = True
+    if anchored and row_distance(estimates, anchor, i) > radius:
+        anchor[i, :] = np.nan
+        anchored = False
+    since[i] = since[i] + 1 if anchored else 0
+    return since[i] >= steps

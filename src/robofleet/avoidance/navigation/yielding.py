@@ -35,11 +35,13 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 from scipy.spatial import cKDTree
 
+from .goal import row_distance
 from .params import YieldingParams
-from .progress import ParkedTest
+from .progress import ParkedTest, parked_row
 
 HOLD, YIELD, RETURN = 0, 1, 2
 
@@ -58,13 +60,32 @@ class StillTracker:
         return cls(np.full((n, dim), np.nan), np.zeros(n, np.int32))
 
     def observe(self, estimates: np.ndarray, radius: float, steps: int) -> np.ndarray:
-        """Update with this step's estimates; return the still counts ``(N,)``."""
-        fresh = ~np.isfinite(self.mean[:, 0])
-        self.mean[fresh] = estimates[fresh]
-        self.mean += (estimates - self.mean) * (2.0 / steps)
-        near_mean = np.linalg.norm(estimates - self.mean, axis=1) < radius
-        self.still = np.where(near_mean, self.still + 1, 0)
+        """Update with this step's estimates (in place, one compiled pass); return the still
+        counts ``(N,)``."""
+        _still_pass(np.ascontiguousarray(estimates, dtype=np.float64), self.mean, self.still, 2.0 / steps, float(radius))
         return self.still
+
+
+@numba.njit(cache=True)
+def _still_pass(estimates, mean, still, rate, radius):
+    """:meth:`StillTracker.observe` for every robot."""
+    for i in range(len(estimates)):
+        still_row(i, estimates, mean, still, rate, radius)
+
+
+@numba.njit(cache=True, inline="always")
+def still_row(i, estimates, mean, still, rate, radius):
+    """Robot ``i``'s step of :class:`StillTracker`, in place: a mean not yet set
+    (``mean[i, 0]`` not finite) starts at the estimate; ``m ← m + (p̂ − m) · rate``; the
+    still count grows by one while ``‖p̂ − m‖ < radius`` and is 0 otherwise. Rounded as
+    the numpy expressions of the rule (:func:`.goal.row_distance` for the norm). Returns
+    the count."""
+    if not np.isfinite(mean[i, 0]):
+        mean[i, :] = estimates[i, :]
+    for c in range(mean.shape[1]):
+        mean[i, c] += (estimates[i, c] - mean[i, c]) * rate
+    still[i] = still[i] + 1 if row_distance(estimates, mean, i) < radius else 0
+    return still[i]
 
 
 @dataclass
@@ -84,15 +105,30 @@ class ParkingState:
         """Update what the neighbours see of each robot and return which robots hold still
         (:class:`StillTracker`: for ``still_steps`` steps) and which stayed where they came
         to rest for ``parked_steps`` steps (:class:`.progress.ParkedTest`)."""
-        still = self.stillness.observe(estimates, params.still_radius, params.still_steps) >= params.still_steps
-        radius = params.max_aside + params.still_radius
-        return still, self.resting.observe(estimates, still, self.stillness.mean, radius, params.parked_steps)
+        n = len(estimates)
+        still, resting = np.empty(n, np.bool_), np.zeros(n, np.bool_)
+        tracker, test = self.stillness, self.resting
+        _watch_pass(np.ascontiguousarray(estimates, dtype=np.float64), tracker.mean, tracker.still, 2.0 / params.still_steps,
+                    float(params.still_radius), int(params.still_steps), test.anchor, test.since,
+                    float(params.max_aside + params.still_radius), int(params.parked_steps), still, resting)
+        return still, resting
 
     @classmethod
     def initial(cls, n: int, dim: int = 2) -> ParkingState:
         counters = [np.zeros(n, np.int32) for _ in range(3)]
         return cls(np.zeros(n, np.int8), *counters, np.zeros((n, dim)), np.zeros(n, np.int64), StillTracker.initial(n, dim),
                    ParkedTest.initial(n, dim))
+
+
+@numba.njit(cache=True)
+def _watch_pass(estimates, mean, still_count, rate, radius, still_steps, anchor, since, rest_radius, parked_steps, still, resting):
+    """:meth:`ParkingState.observe` for every robot in one pass: each robot's
+    :func:`still_row`, then (``parked_steps > 0``) its :func:`.progress.parked_row` on the
+    updated mean."""
+    for i in range(len(estimates)):
+        still[i] = still_row(i, estimates, mean, still_count, rate, radius) >= still_steps
+        if parked_steps > 0:
+            resting[i] = parked_row(i, estimates, still[i], mean, anchor, since, rest_radius, parked_steps)
 
 
 def close_pairs(estimates: np.ndarray, near: float, local_box: float = np.inf) -> np.ndarray:
