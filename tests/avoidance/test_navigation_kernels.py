@@ -173,6 +173,18 @@ def test_row_products_are_one_product_bit_for_bit(n, k):
                                   (x[:, :2][::-1] - x[:, :2]) @ turn_matrix(33.0).T + x[:, :2])
 
 
+@pytest.mark.parametrize("n", [5, 2 * BLAS_BLOCK + 17, 40_000])
+def test_turned_goals_of_some_rows_are_those_of_the_gathered_rows(n):
+    """The right-hand turn of the rows ``rows`` (differences and sums taken without gathering)
+    equals the turn of the gathered rows, NaN estimates included."""
+    rng = np.random.default_rng(n)
+    p = random_estimates(rng, n)
+    g = p + rng.normal(size=(n, 2)) * 10.0 ** rng.uniform(-3, 3, (n, 1))
+    rows = np.flatnonzero(rng.random(n) < 0.8)
+    angle = np.deg2rad(float(rng.uniform(5, 85)))
+    np.testing.assert_array_equal(right_hand_goals(p, g, angle, rows), right_hand_goals(p[rows], g[rows], angle))
+
+
 def numpy_segments_free(a, b, obstacles: Halfplanes):
     """The Cyrus–Beck test as numpy array expressions over ``(S, O, K)``."""
     if obstacles.A.shape[0] == 0:

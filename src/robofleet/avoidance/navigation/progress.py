@@ -151,25 +151,21 @@ class ParkedTest:
 
 @numba.njit(cache=True)
 def _parked_pass(estimates, rest, mean, anchor, since, radius, steps, parked):
-    """:meth:`ParkedTest.observe` for every robot, in place (one compiled pass)."""
+    """:meth:`ParkedTest.observe` for every robot, in place on ``anchor`` and ``since``: a
+    robot without an anchor (``anchor[i, 0]`` not finite) that comes to rest anchors at its
+    running mean; an anchored robot whose estimate lies farther than ``radius`` from the
+    anchor loses it; ``since`` counts the steps anchored (0 without an anchor), and the
+    robot counts as parked once ``since ≥ steps``. The distance is :func:`.goal.row_distance`,
+    rounded as ``np.linalg.norm``."""
     for i in range(len(estimates)):
-        parked[i] = parked_row(i, estimates, rest[i], mean, anchor, since, radius, steps)
-
-
-@numba.njit(cache=True, inline="always")
-def parked_row(i, estimates, rest, mean, anchor, since, radius, steps):
-    """Robot ``i``'s step of :class:`ParkedTest`, in place on ``anchor[i]`` and ``since[i]``:
-    a robot without an anchor (``anchor[i, 0]`` not finite) that comes to rest (``rest``)
-    anchors at its running mean; an anchored robot whose estimate lies farther than
-    ``radius`` from the anchor loses it; ``since[i]`` counts the steps anchored (0 without
-    an anchor). Returns whether it counts as parked, ``since[i] ≥ steps``. The distance is
-    :func:`.goal.row_distance`, rounded as ``np.linalg.norm``."""
-    anchored = np.isfinite(anchor[i, 0])
-    if rest and not anchored:
-        anchor[i, :] = mean[i, :]
-        anchored = True
-    if anchored and row_distance(estimates, anchor, i) > radius:
-        anchor[i, :] = np.nan
-        anchored = False
-    since[i] = since[i] + 1 if anchored else 0
-    return since[i] >= steps
+        anchored = np.isfinite(anchor[i, 0])
+        if rest[i] and not anchored:
+            for c in range(anchor.shape[1]):
+                anchor[i, c] = mean[i, c]
+            anchored = True
+        if anchored and row_distance(estimates, anchor, i) > radius:
+            for c in range(anchor.shape[1]):
+                anchor[i, c] = np.nan
+            anchored = False
+        since[i] = since[i] + 1 if anchored else 0
+        parked[i] = since[i] >= steps

@@ -77,11 +77,37 @@ def _blocked_range(lo, hi, estimates, active, A, b, kind, near, out):
         out[i] = blocked
 
 
-def right_hand_goals(estimates: np.ndarray, goals: np.ndarray, angle: float) -> np.ndarray:
-    """The goals turned clockwise by ``angle`` [rad] about each robot."""
+def right_hand_goals(estimates: np.ndarray, goals: np.ndarray, angle: float, rows: np.ndarray | None = None) -> np.ndarray:
+    """The goals turned clockwise by ``angle`` [rad] about each robot, ``(g − p̂) Rᵀ + p̂``;
+    with ``rows``, those of the robots ``rows`` only, ``(R, 2)``: the same values as for
+    ``goals[rows]`` and ``estimates[rows]``, the differences and sums taken in one compiled
+    pass each instead of gathering the rows."""
     c, s = np.cos(angle), np.sin(angle)
     turn = np.array([[c, s], [-s, c]])
-    return row_products(goals - estimates, turn.T) + estimates
+    if rows is None:
+        return row_products(goals - estimates, turn.T) + estimates
+    estimates = np.ascontiguousarray(estimates, dtype=np.float64)
+    offsets = np.empty((len(rows), 2))
+    _row_offsets(rows, np.ascontiguousarray(goals, dtype=np.float64), estimates, offsets)
+    turned = row_products(offsets, turn.T)
+    _add_rows(turned, rows, estimates)
+    return turned
+
+
+@numba.njit(cache=True)
+def _row_offsets(rows, goals, estimates, out):
+    """``out[r] = goals[rows[r]] − estimates[rows[r]]``."""
+    for r in range(len(rows)):
+        i = rows[r]
+        out[r, 0], out[r, 1] = goals[i, 0] - estimates[i, 0], goals[i, 1] - estimates[i, 1]
+
+
+@numba.njit(cache=True)
+def _add_rows(out, rows, estimates):
+    """``out[r] += estimates[rows[r]]``."""
+    for r in range(len(rows)):
+        i = rows[r]
+        out[r, 0], out[r, 1] = out[r, 0] + estimates[i, 0], out[r, 1] + estimates[i, 1]
 
 
 def on_obstacle_face(active: np.ndarray, cells) -> np.ndarray:
@@ -100,7 +126,7 @@ def turned_projection(estimates: np.ndarray, targets: np.ndarray, proj: Projecti
     rows = np.flatnonzero(turn)
     if len(rows) == 0:
         return proj
-    goals = right_hand_goals(estimates[rows], targets[rows], np.deg2rad(params.angle))
+    goals = right_hand_goals(estimates, targets, np.deg2rad(params.angle), rows)
     point, active = proj.point.copy(), proj.active.copy()
     project_rows_into(point, active, rows, goals, cells)
     return Projection(point, proj.empty, active)

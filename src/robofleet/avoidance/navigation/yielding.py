@@ -41,7 +41,7 @@ from scipy.spatial import cKDTree
 
 from .goal import row_distance
 from .params import YieldingParams
-from .progress import ParkedTest, parked_row
+from .progress import ParkedTest
 
 HOLD, YIELD, RETURN = 0, 1, 2
 
@@ -68,24 +68,17 @@ class StillTracker:
 
 @numba.njit(cache=True)
 def _still_pass(estimates, mean, still, rate, radius):
-    """:meth:`StillTracker.observe` for every robot."""
-    for i in range(len(estimates)):
-        still_row(i, estimates, mean, still, rate, radius)
-
-
-@numba.njit(cache=True, inline="always")
-def still_row(i, estimates, mean, still, rate, radius):
-    """Robot ``i``'s step of :class:`StillTracker`, in place: a mean not yet set
+    """:meth:`StillTracker.observe` for every robot, in place: a mean not yet set
     (``mean[i, 0]`` not finite) starts at the estimate; ``m ← m + (p̂ − m) · rate``; the
     still count grows by one while ``‖p̂ − m‖ < radius`` and is 0 otherwise. Rounded as
-    the numpy expressions of the rule (:func:`.goal.row_distance` for the norm). Returns
-    the count."""
-    if not np.isfinite(mean[i, 0]):
-        mean[i, :] = estimates[i, :]
-    for c in range(mean.shape[1]):
-        mean[i, c] += (estimates[i, c] - mean[i, c]) * rate
-    still[i] = still[i] + 1 if row_distance(estimates, mean, i) < radius else 0
-    return still[i]
+    the numpy expressions of the rule (:func:`.goal.row_distance` for the norm)."""
+    for i in range(len(estimates)):
+        fresh = not np.isfinite(mean[i, 0])
+        for c in range(mean.shape[1]):
+            if fresh:
+                mean[i, c] = estimates[i, c]
+            mean[i, c] += (estimates[i, c] - mean[i, c]) * rate
+        still[i] = still[i] + 1 if row_distance(estimates, mean, i) < radius else 0
 
 
 @dataclass
@@ -105,30 +98,15 @@ class ParkingState:
         """Update what the neighbours see of each robot and return which robots hold still
         (:class:`StillTracker`: for ``still_steps`` steps) and which stayed where they came
         to rest for ``parked_steps`` steps (:class:`.progress.ParkedTest`)."""
-        n = len(estimates)
-        still, resting = np.empty(n, np.bool_), np.zeros(n, np.bool_)
-        tracker, test = self.stillness, self.resting
-        _watch_pass(np.ascontiguousarray(estimates, dtype=np.float64), tracker.mean, tracker.still, 2.0 / params.still_steps,
-                    float(params.still_radius), int(params.still_steps), test.anchor, test.since,
-                    float(params.max_aside + params.still_radius), int(params.parked_steps), still, resting)
-        return still, resting
+        still = self.stillness.observe(estimates, params.still_radius, params.still_steps) >= params.still_steps
+        radius = params.max_aside + params.still_radius
+        return still, self.resting.observe(estimates, still, self.stillness.mean, radius, params.parked_steps)
 
     @classmethod
     def initial(cls, n: int, dim: int = 2) -> ParkingState:
         counters = [np.zeros(n, np.int32) for _ in range(3)]
         return cls(np.zeros(n, np.int8), *counters, np.zeros((n, dim)), np.zeros(n, np.int64), StillTracker.initial(n, dim),
                    ParkedTest.initial(n, dim))
-
-
-@numba.njit(cache=True)
-def _watch_pass(estimates, mean, still_count, rate, radius, still_steps, anchor, since, rest_radius, parked_steps, still, resting):
-    """:meth:`ParkingState.observe` for every robot in one pass: each robot's
-    :func:`still_row`, then (``parked_steps > 0``) its :func:`.progress.parked_row` on the
-    updated mean."""
-    for i in range(len(estimates)):
-        still[i] = still_row(i, estimates, mean, still_count, rate, radius) >= still_steps
-        if parked_steps > 0:
-            resting[i] = parked_row(i, estimates, still[i], mean, anchor, since, rest_radius, parked_steps)
 
 
 def close_pairs(estimates: np.ndarray, near: float, local_box: float = np.inf) -> np.ndarray:
