@@ -77,9 +77,10 @@ def _excess(x0, x1, A, b, i, k):
 
 
 @numba.njit(cache=True)
-def _feasible(x0, x1, A, b, valid, i):
-    for k in range(A.shape[1]):
-        if valid[i, k] and _excess(x0, x1, A, b, i, k) > 0:
+def _feasible(x0, x1, A, b, rows, count, i):
+    """``x`` meets the rows ``rows[:count]`` of robot ``i``'s cell (its valid rows)."""
+    for r in range(count):
+        if _excess(x0, x1, A, b, i, rows[r]) > 0:
             return False
     return True
 
@@ -97,48 +98,75 @@ def _project_parallel(goals, A, b, valid, point, empty, active):
 
 @numba.njit(cache=True)
 def _project_range(lo, hi, goals, A, b, valid, point, empty, active):
-    slack, violated = np.empty(A.shape[1]), np.empty(A.shape[1], np.bool_)
+    slack, violated, rows = _scratch(A.shape[1])
     for i in range(lo, hi):
-        _project_one(i, goals, A, b, valid, point, empty, active, slack, violated)
+        point[i, 0], point[i, 1], active[i, 0], active[i, 1], empty[i] = _project_point(goals[i, 0], goals[i, 1], i, A, b, valid, slack,
+                                                                                        violated, rows)
 
 
 @numba.njit(cache=True, inline="always")
-def _project_one(i, goals, A, b, valid, point, empty, active, slack, violated):
-    """Robot ``i``'s goal onto its cell (:func:`_project_point`), written into row ``i``."""
-    point[i, 0], point[i, 1], active[i, 0], active[i, 1], empty[i] = _project_point(goals[i, 0], goals[i, 1], i, A, b, valid, slack, violated)
+def _scratch(m):
+    """Per-task work arrays of :func:`_project_point` for cells of ``m`` rows."""
+    return np.empty(m), np.empty(m, np.bool_), np.empty(m, np.intp)
 
 
 @numba.njit(cache=True, inline="always")
-def _project_point(g0, g1, i, A, b, valid, slack, violated):
+def _project_point(g0, g1, i, A, b, valid, slack, violated, rows):
     """Steps 1–4 of the module docstring for the point ``g`` and cell ``i``: ``(x0, x1,
     first active row, second active row, empty)`` (``-1`` for an active row not used;
-    ``x = NaN`` for an empty cell)."""
-    m = A.shape[1]
-    any_violated = False
-    for k in range(m):
-        slack[k] = A[i, k, 0] * g0 + A[i, k, 1] * g1 - b[i, k]
-        violated[k] = valid[i, k] and _excess(g0, g1, A, b, i, k) > 0
-        any_violated |= violated[k]
-    x0, x1, k0, k1 = g0, g1, -1, -1
+    ``x = NaN`` for an empty cell).
+
+    Candidates are tried in the order of the rows, and one replaces the best so far only
+    when it is feasible and strictly closer, so the first of equally close ones is kept.
+    Only the valid rows are visited (``rows[:count]``). A vertex of two violated rows
+    ``k < j`` is tried once, as ``(k, j)``: taken as ``(j, k)`` its determinant and
+    numerators are the exact negations and its multipliers the same two numbers swapped
+    (a difference of two products changes sign exactly when they swap), so it has the same
+    distance and the same tests, and comes later, where it could not replace ``(k, j)``."""
+    count, any_violated = 0, False
+    for k in range(A.shape[1]):
+        violated[k] = False
+        if valid[i, k]:
+            rows[count] = k
+            count += 1
+            slack[k] = A[i, k, 0] * g0 + A[i, k, 1] * g1 - b[i, k]
+            violated[k] = _excess(g0, g1, A, b, i, k) > 0
+            any_violated |= violated[k]
     if not any_violated:
-        return x0, x1, k0, k1, False
-    best = np.inf
-    # step 2: edge candidates of violated constraints (any feasible one is optimal)
-    for k in range(m):
-        if violated[k]:
-            e0, e1 = g0 - slack[k] * A[i, k, 0], g1 - slack[k] * A[i, k, 1]
-            if slack[k] < best and _feasible(e0, e1, A, b, valid, i):
-                best = slack[k]
-                x0, x1, k0, k1 = e0, e1, k, -1
+        return g0, g1, -1, -1, False
+    x0, x1, k0, k1, best = _best_edge(g0, g1, i, A, b, slack, violated, rows, count)
     if best < np.inf:
         return x0, x1, k0, k1, False
-    # step 3: vertices pairing a violated constraint with any other, with λ ≥ 0
-    for k in range(m):
+    return _best_vertex(g0, g1, i, A, b, violated, rows, count)
+
+
+@numba.njit(cache=True, inline="always")
+def _best_edge(g0, g1, i, A, b, slack, violated, rows, count):
+    """Step 2: the feasible projection onto a violated row nearest ``g`` (``best`` = its
+    slack; ``inf`` when none is feasible)."""
+    x0, x1, k0, k1, best = g0, g1, -1, -1, np.inf
+    for r in range(count):
+        k = rows[r]
+        if violated[k]:
+            e0, e1 = g0 - slack[k] * A[i, k, 0], g1 - slack[k] * A[i, k, 1]
+            if slack[k] < best and _feasible(e0, e1, A, b, rows, count, i):
+                best = slack[k]
+                x0, x1, k0, k1 = e0, e1, k, -1
+    return x0, x1, k0, k1, best
+
+
+@numba.njit(cache=True, inline="always")
+def _best_vertex(g0, g1, i, A, b, violated, rows, count):
+    """Steps 3–4: the feasible vertex with ``λ ≥ 0`` nearest ``g``, or an empty cell."""
+    best, x0, x1, k0, k1 = np.inf, np.nan, np.nan, -1, -1
+    for r in range(count):
+        k = rows[r]
         if not violated[k]:
             continue
         ak0, ak1, bk = A[i, k, 0], A[i, k, 1], b[i, k]
-        for j in range(m):
-            if j == k or not valid[i, j]:
+        for s in range(count):
+            j = rows[s]
+            if j == k or (violated[j] and j < k):  # (j, k) was tried as such
                 continue
             aj0, aj1, bj = A[i, j, 0], A[i, j, 1], b[i, j]
             det = ak0 * aj1 - ak1 * aj0
@@ -152,12 +180,10 @@ def _project_point(g0, g1, i, A, b, valid, slack, violated):
             if lam_k < -FEAS_TOL or lam_j < -FEAS_TOL:
                 continue
             dist = np.sqrt(r0 * r0 + r1 * r1)
-            if dist < best and _feasible(v0, v1, A, b, valid, i):
+            if dist < best and _feasible(v0, v1, A, b, rows, count, i):
                 best = dist
                 x0, x1, k0, k1 = v0, v1, k, j
-    if best == np.inf:  # step 4: empty cell
-        return np.nan, np.nan, -1, -1, True
-    return x0, x1, k0, k1, False
+    return x0, x1, k0, k1, best == np.inf
 
 
 def project_rows_into(point: np.ndarray, active: np.ndarray | None, rows: np.ndarray, goals: np.ndarray, cells: Cells) -> None:
@@ -188,10 +214,10 @@ def _project_rows_parallel(rows, goals, A, b, valid, point, active, with_active)
 
 @numba.njit(cache=True)
 def _project_rows_range(lo, hi, rows, goals, A, b, valid, point, active, with_active):
-    slack, violated = np.empty(A.shape[1]), np.empty(A.shape[1], np.bool_)
+    slack, violated, live = _scratch(A.shape[1])
     for r in range(lo, hi):
         i = rows[r]
-        x0, x1, k0, k1, none = _project_point(goals[r, 0], goals[r, 1], i, A, b, valid, slack, violated)
+        x0, x1, k0, k1, none = _project_point(goals[r, 0], goals[r, 1], i, A, b, valid, slack, violated, live)
         if not none:
             point[i, 0], point[i, 1] = x0, x1
             if with_active:
