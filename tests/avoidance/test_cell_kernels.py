@@ -8,12 +8,14 @@ from scipy.spatial import cKDTree
 
 from robofleet.avoidance import kernels
 from robofleet.avoidance.cell import (
+    GRID_CELLS_MAX,
     CellGeometry,
     _obstacle_rows,
     _pad,
     _robot_rows,
     _wall_rows,
     build_cells,
+    grid_fits,
     neighbour_pairs,
 )
 from robofleet.avoidance.neighbours import (
@@ -174,3 +176,21 @@ def test_obstacles_near_a_point_match_the_all_pairs_test(seed):
     expected = np.nonzero(near)
     owner, index = obstacles_from_bounds(lo, hi).near(centres, reach)
     assert np.array_equal(owner, expected[0]) and np.array_equal(index, expected[1])
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_grid_fits_is_the_extent_test_on_the_first_axis(seed):
+    """``grid_fits`` takes the extent of the transposed estimates; it decides as the
+    extent along the first axis of ``(N, 2)`` does, with NaN, infinite and far-flung
+    estimates."""
+    rng = np.random.default_rng(seed)
+    for _ in range(60):
+        n = int(rng.integers(1, 400))
+        p = rng.normal(size=(n, 2)) * 10.0 ** rng.uniform(-2, 25, (n, 1))
+        spoil = rng.random(n)
+        p[spoil < 0.02, rng.integers(0, 2)] = np.nan
+        p[(spoil > 0.98), rng.integers(0, 2)] = rng.choice([np.inf, -np.inf])
+        box = float(10.0 ** rng.uniform(-3, 3))
+        with np.errstate(over="ignore", invalid="ignore"):
+            expected = bool(np.prod(np.ptp(p, axis=0) / box + 1.0) < GRID_CELLS_MAX)
+        assert grid_fits(p, box) == expected
