@@ -104,16 +104,16 @@ def test_blocked_test_is_the_numpy_expression(n, seed):
 @pytest.mark.parametrize("n", SIZES)
 @pytest.mark.parametrize("seed", range(3))
 def test_turned_projection_is_the_reprojection_of_the_gathered_rows(n, seed):
-    """Only the blocked driving robots are turned and projected again, in place of
-    gathering their cells; every other row, and every empty turned cell, keeps the first
-    projection."""
+    """Only the blocked driving robots are turned and projected again, each right after
+    its first projection, in place of gathering their cells; every other row, and every
+    empty turned cell, keeps the first projection."""
     rng = np.random.default_rng(10 + seed)
     cells, p = random_cells(rng, n, 6), random_estimates(rng, n)
     targets = p + rng.normal(size=(n, 2)) * 5
     proj = project_onto_cells(targets, cells)
     driving = rng.random(n) < 0.8
     params = RightHandParams(angle=float(rng.uniform(10, 80)), face_near=float(rng.uniform(0.2, 2.0)))
-    got = turned_projection(p, targets, proj, cells, driving, params)
+    got = turned_projection(p, targets, cells, driving, params)
     assert_same_projection(got, numpy_turned_projection(p, targets, proj, cells, driving, params))
     assert not np.array_equal(got.point, proj.point, equal_nan=True)  # some robots did turn
 

@@ -98,20 +98,20 @@ def _project_parallel(goals, A, b, valid, point, empty, active):
 
 @numba.njit(cache=True)
 def _project_range(lo, hi, goals, A, b, valid, point, empty, active):
-    slack, violated, rows = _scratch(A.shape[1])
+    slack, violated, rows = projection_scratch(A.shape[1])
     for i in range(lo, hi):
-        point[i, 0], point[i, 1], active[i, 0], active[i, 1], empty[i] = _project_point(goals[i, 0], goals[i, 1], i, A, b, valid, slack,
+        point[i, 0], point[i, 1], active[i, 0], active[i, 1], empty[i] = project_point(goals[i, 0], goals[i, 1], i, A, b, valid, slack,
                                                                                         violated, rows)
 
 
 @numba.njit(cache=True, inline="always")
-def _scratch(m):
-    """Per-task work arrays of :func:`_project_point` for cells of ``m`` rows."""
+def projection_scratch(m):
+    """Work arrays of :func:`project_point` for cells of ``m`` rows (one set per task)."""
     return np.empty(m), np.empty(m, np.bool_), np.empty(m, np.intp)
 
 
 @numba.njit(cache=True, inline="always")
-def _project_point(g0, g1, i, A, b, valid, slack, violated, rows):
+def project_point(g0, g1, i, A, b, valid, slack, violated, rows):
     """Steps 1–4 of the module docstring for the point ``g`` and cell ``i``: ``(x0, x1,
     first active row, second active row, empty)`` (``-1`` for an active row not used;
     ``x = NaN`` for an empty cell).
@@ -214,10 +214,10 @@ def _project_rows_parallel(rows, goals, A, b, valid, point, active, with_active)
 
 @numba.njit(cache=True)
 def _project_rows_range(lo, hi, rows, goals, A, b, valid, point, active, with_active):
-    slack, violated, live = _scratch(A.shape[1])
+    slack, violated, live = projection_scratch(A.shape[1])
     for r in range(lo, hi):
         i = rows[r]
-        x0, x1, k0, k1, none = _project_point(goals[r, 0], goals[r, 1], i, A, b, valid, slack, violated, live)
+        x0, x1, k0, k1, none = project_point(goals[r, 0], goals[r, 1], i, A, b, valid, slack, violated, live)
         if not none:
             point[i, 0], point[i, 1] = x0, x1
             if with_active:

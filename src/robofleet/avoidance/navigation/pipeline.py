@@ -21,8 +21,8 @@ The stages (each its own module, with its design, equations and guarantee):
 ``detour``         :mod:`.detour`: blocked robots re-plan around neighbours that hold still
 ``recovery``       :mod:`.recovery`: appendix C's rotated goal or obstacle vertex
 ``yielding``       :mod:`.yielding`: arrived robots step aside and return
-``project``        the target projected onto the cell, ``Π_Vi(t)``
-``right_hand``     :mod:`.right_hand`: robots a neighbour blocks veer right
+``project``        the target projected onto the cell, ``Π_Vi(t)`` (single integrators: with the right-hand turn)
+``right_hand``     :mod:`.right_hand`: robots a neighbour blocks veer right (single integrators: in ``project``)
 ``band``           :mod:`.band`: robots deep in an obstacle's band steer back into the cell
 ``keep``           the model's cell-keeping controller
 ``progress``       :mod:`robofleet.avoidance.navigation.progress`: which robots are stuck; their recovery starts
@@ -52,15 +52,15 @@ from .yielding import HOLD, YIELD, ParkingState, parking_targets
 MPC_NO_MPC, MPC_SOLVED, MPC_FALLBACK, MPC_ARRIVED = -1, 0, 1, 2  # mpc_status codes (int8)
 
 PIPELINES: dict[str, tuple[str, ...]] = {
-    "single_integrator": ("goal", "route", "detour", "recovery", "yielding", "home", "project", "right_hand", "band",
-                          "keep", "progress"),
+    "single_integrator": ("goal", "route", "detour", "recovery", "yielding", "home", "project", "band", "keep", "progress"),
     "double_integrator": ("goal", "route", "detour", "right_hand", "yielding", "home", "recovery", "keep"),
     "unicycle": ("goal", "route", "yielding", "home", "recovery", "keep"),
     "mpc": ("goal", "home", "keep"),
 }
 """The stages of each pipeline, in order. Single integrators recover on the route's target
-and turn their projected target; double integrators turn the target before their braking
-rule projects it, and recover by goal rotation; differential-drive robots take neither
+and turn their projected target (the right-hand rule within the projection stage:
+:func:`.right_hand.turned_projection`); double integrators turn the target before their
+braking rule projects it, and recover by goal rotation; differential-drive robots take neither
 the right-hand turn nor detours (their three-projection controller drives the turned arcs
 into the walls). Single integrators find their stuck robots with the progress checker
 (:class:`.progress.ProgressChecker`, on the route's path length left), which the safety
@@ -234,12 +234,12 @@ def yielding_stage(t: TeamNavigation, s: StepState) -> None:
 
 
 def project_stage(t: TeamNavigation, s: StepState) -> None:
-    s.proj = project_onto_cells(s.target, s.cells)
-
-
-def single_integrator_right_hand(t: TeamNavigation, s: StepState) -> None:
+    """``Π_Vi(t)``; with the right-hand rule on, the turned targets of the blocked robots
+    that drive (not arrived, not recovering) in the same pass (:func:`.right_hand.turned_projection`)."""
     if t.navigating and t.params.right_hand.angle > 0:
-        s.proj = turned_projection(s.p, s.target, s.proj, s.cells, ~t.arrived & (t.mode == NORMAL), t.params.right_hand)
+        s.proj = turned_projection(s.p, s.target, s.cells, ~t.arrived & (t.mode == NORMAL), t.params.right_hand)
+    else:
+        s.proj = project_onto_cells(s.target, s.cells)
 
 
 def right_hand_stage(t: TeamNavigation, s: StepState) -> None:
@@ -308,7 +308,7 @@ STAGES = {
     "goal": goal_stage, "home": home_stage, "route": route_stage, "detour": detour_stage, "yielding": yielding_stage, "project": project_stage,
     "band": band_stage, "progress": progress_stage,
     ("recovery", "single_integrator"): single_integrator_recovery, "recovery": rotation_recovery,
-    ("right_hand", "single_integrator"): single_integrator_right_hand, "right_hand": right_hand_stage,
+    "right_hand": right_hand_stage,
     ("keep", "single_integrator"): keep_single_integrator, ("keep", "double_integrator"): keep_double_integrator,
     ("keep", "unicycle"): keep_unicycle, ("keep", "mpc"): keep_mpc,
 }

@@ -11,7 +11,7 @@ roundabout.
 Two forms, by where the stage sits in a model's pipeline
 (:mod:`~robofleet.avoidance.navigation.pipeline`):
 
-* :func:`turned_projection` (after the projection, single integrators): the blocked
+* :func:`turned_projection` (with the projection, single integrators): the blocked
   robots' turned targets are projected onto their cells again; a robot keeps its first
   projection when the turned one is empty.
 * :func:`turned_targets` (before the model's own controller projects, double
@@ -32,7 +32,7 @@ import numpy as np
 
 from ..cell import Cells, Kind, face_excess
 from ..kernels import row_products, use_parallel
-from ..projection import Projection, project_onto_cells, project_rows_into
+from ..projection import Projection, check_projection_inputs, project_onto_cells, project_point, project_rows_into, projection_scratch
 from .params import RightHandParams
 
 
@@ -64,24 +64,31 @@ def _blocked_parallel(estimates, active, A, b, kind, near, out):
 
 @numba.njit(cache=True)
 def _blocked_range(lo, hi, estimates, active, A, b, kind, near, out):
-    """:func:`blocked_by_robot` for robots ``lo … hi − 1``: the gap ``(bₖ − aₖ·p̂)/‖aₖ‖`` is
+    """:func:`blocked_by_robot` for robots ``lo … hi − 1``."""
+    for i in range(lo, hi):
+        out[i] = _blocked(i, estimates, active, A, b, kind, near)
+
+
+@numba.njit(cache=True, inline="always")
+def _blocked(i, estimates, active, A, b, kind, near):
+    """Robot ``i`` is blocked (:func:`blocked_by_robot`): the gap ``(bₖ − aₖ·p̂)/‖aₖ‖`` is
     exactly ``−``:func:`~robofleet.avoidance.cell.face_excess` (``x − y = −(y − x)`` in
     floating point)."""
-    for i in range(lo, hi):
-        blocked = False
-        for c in range(active.shape[1]):
-            k = active[i, c]
-            if k < 0 or kind[i, k] != _ROBOT:
-                continue
-            blocked |= -face_excess(A, b, i, k, estimates[i, 0], estimates[i, 1]) < near
-        out[i] = blocked
+    blocked = False
+    for c in range(active.shape[1]):
+        k = active[i, c]
+        if k < 0 or kind[i, k] != _ROBOT:
+            continue
+        blocked |= -face_excess(A, b, i, k, estimates[i, 0], estimates[i, 1]) < near
+    return blocked
 
 
 def right_hand_goals(estimates: np.ndarray, goals: np.ndarray, angle: float, rows: np.ndarray | None = None) -> np.ndarray:
     """The goals turned clockwise by ``angle`` [rad] about each robot, ``(g − p̂) Rᵀ + p̂``;
-    with ``rows``, those of the robots ``rows`` only, ``(R, 2)``: the same values as for
-    ``goals[rows]`` and ``estimates[rows]``, the differences and sums taken in one compiled
-    pass each instead of gathering the rows."""
+    with ``rows``, those of the robots ``rows`` only, ``(R, 2)``: the values for
+    ``goals[rows]`` and ``estimates[rows]`` (one product of those rows: a row of a product
+    may round differently with other rows around it), with the differences and sums taken
+    in one compiled pass each instead of gathering the rows."""
     c, s = np.cos(angle), np.sin(angle)
     turn = np.array([[c, s], [-s, c]])
     if rows is None:
@@ -116,20 +123,47 @@ def on_obstacle_face(active: np.ndarray, cells) -> np.ndarray:
     return np.any((active >= 0) & (cells.kind[rows, np.maximum(active, 0)] == Kind.OBSTACLE), axis=1)
 
 
-def turned_projection(estimates: np.ndarray, targets: np.ndarray, proj: Projection, cells: Cells, driving: np.ndarray,
+def turned_projection(estimates: np.ndarray, targets: np.ndarray, cells: Cells, driving: np.ndarray,
                       params: RightHandParams) -> Projection:
-    """``proj`` with the blocked ``driving`` robots' targets turned right and projected
-    again (only their rows are turned and projected)."""
-    turn = blocked_by_robot(estimates, proj.active, cells, params.face_near)
-    turn &= driving
-    turn &= ~proj.empty
+    """Every target projected onto its cell (:func:`~robofleet.avoidance.projection.project_onto_cells`),
+    and the blocked ``driving`` robots' (:func:`blocked_by_robot` on that projection)
+    turned right and projected again, unless the turned projection is empty. One compiled
+    pass projects and finds the blocked robots; only their rows are then turned
+    (:func:`right_hand_goals`) and projected again, in place
+    (:func:`~robofleet.avoidance.projection.project_rows_into`)."""
+    check_projection_inputs(targets, cells)
+    n = len(targets)
+    estimates = np.ascontiguousarray(estimates, dtype=np.float64)
+    point, empty, active, turn = np.empty((n, 2)), np.zeros(n, np.bool_), np.full((n, 2), -1, np.intp), np.empty(n, np.bool_)
+    args = (np.ascontiguousarray(targets, dtype=np.float64), estimates, np.ascontiguousarray(cells.A), np.ascontiguousarray(cells.b),
+            np.ascontiguousarray(cells.valid), np.ascontiguousarray(cells.kind), np.ascontiguousarray(driving, dtype=np.bool_),
+            float(params.face_near), point, empty, active, turn)
+    if use_parallel(n):
+        _projected_parallel(*args)
+    else:
+        _projected_range(0, n, *args)
     rows = np.flatnonzero(turn)
-    if len(rows) == 0:
-        return proj
-    goals = right_hand_goals(estimates, targets, np.deg2rad(params.angle), rows)
-    point, active = proj.point.copy(), proj.active.copy()
-    project_rows_into(point, active, rows, goals, cells)
-    return Projection(point, proj.empty, active)
+    if len(rows):
+        project_rows_into(point, active, rows, right_hand_goals(estimates, targets, np.deg2rad(params.angle), rows), cells)
+    return Projection(point, empty, active)
+
+
+@numba.njit(cache=True, parallel=True)
+def _projected_parallel(targets, estimates, A, b, valid, kind, driving, near, point, empty, active, turn):
+    n = len(targets)
+    for c in numba.prange((n + _CHUNK - 1) // _CHUNK):
+        _projected_range(c * _CHUNK, min(n, (c + 1) * _CHUNK), targets, estimates, A, b, valid, kind, driving, near, point, empty, active, turn)
+
+
+@numba.njit(cache=True)
+def _projected_range(lo, hi, targets, estimates, A, b, valid, kind, driving, near, point, empty, active, turn):
+    """Robots ``lo … hi − 1``: each target's projection, and whether the robot turns
+    (driving, a non-empty cell, blocked)."""
+    slack, violated, rows = projection_scratch(A.shape[1])
+    for i in range(lo, hi):
+        point[i, 0], point[i, 1], active[i, 0], active[i, 1], empty[i] = project_point(targets[i, 0], targets[i, 1], i, A, b, valid, slack,
+                                                                                       violated, rows)
+        turn[i] = driving[i] and not empty[i] and _blocked(i, estimates, active, A, b, kind, near)
 
 
 def turned_targets(estimates: np.ndarray, targets: np.ndarray, cells: Cells, driving: np.ndarray,
