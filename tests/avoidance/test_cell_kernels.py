@@ -1,6 +1,8 @@
 """The compiled cell builder and neighbour search: same cells as the pairwise form, same
 neighbours as a k-d tree / brute force, same results on any number of threads."""
 
+from concurrent.futures import ThreadPoolExecutor
+
 import numba
 import numpy as np
 import pytest
@@ -196,3 +198,50 @@ def test_grid_fits_is_the_extent_test_on_the_first_axis(seed):
         assert grid_fits(p, box) == expected
         seen.add(expected)
     assert seen == {True, False}
+
+
+def test_reused_arrays_are_never_ones_still_referenced():
+    """``kernels.reused_array`` hands out a buffer again only once no array or view made
+    from it is left: arrays kept (or views of them) keep their values through later
+    requests of every shape, and released buffers are reused."""
+    rng = np.random.default_rng(12)
+    held, reused, seen = [], 0, set()
+    for step in range(400):
+        shape = (int(rng.integers(1, 50)), int(rng.integers(1, 4)))
+        array = kernels.reused_array("test.reuse", shape, np.float64)
+        reused += id(array.base) in seen
+        seen.add(id(array.base))
+        array[...] = step
+        if rng.random() < 0.5:
+            held.append((step, array if rng.random() < 0.5 else array[: max(1, shape[0] // 2)]))
+        if held and rng.random() < 0.4:
+            held.pop(int(rng.integers(len(held))))
+        del array
+        for value, kept in held:
+            assert np.all(kept == value)
+    assert reused > 100
+
+
+def test_cells_kept_by_the_caller_are_not_overwritten_by_later_cells():
+    """The cells' arrays come from reused buffers: cells a caller keeps stay as built while
+    the next steps' cells are built, on this thread and on another."""
+    rng = np.random.default_rng(13)
+    covs, geo = np.broadcast_to(0.01 * np.eye(2), (300, 2, 2)), geometry_with_obstacles()
+
+    def build(seed):
+        p = np.random.default_rng(seed).uniform(-5.5, 5.5, (300, 2))
+        return build_cells(p, covs, np.full(300, 0.2), 1.63, geo, 2.0)
+
+    first = build(0)
+    expected = [x.copy() for x in (first.A, first.b, first.valid, first.kind, first.source)]
+    row = first.A[7]
+    for seed in rng.integers(1, 1000, 6):
+        build(int(seed))
+    with ThreadPoolExecutor(2) as pool:
+        list(pool.map(build, range(50, 56)))
+    for got, want in zip((first.A, first.b, first.valid, first.kind, first.source), expected):
+        np.testing.assert_array_equal(got, want)
+    np.testing.assert_array_equal(row, expected[0][7])
+    again = build(0)
+    for got, want in zip((again.A, again.b, again.valid, again.kind, again.source), expected):
+        np.testing.assert_array_equal(got, want)

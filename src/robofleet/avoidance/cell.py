@@ -74,7 +74,7 @@ from scipy.spatial import cKDTree
 
 from ..core.errors import ConfigError, short_repr
 from .buffer import buffer
-from .kernels import use_parallel
+from .kernels import reused_array, use_parallel, work_array
 from .neighbours import (
     box_gather,
     box_neighbours,
@@ -234,8 +234,8 @@ def _shared_cells_2d(p, cov, radius, quantile, geometry: CellGeometry, obstacles
     count, walls, near = _gather(grid, wall_a, wall_b, n, use_parallel(n))
     mode, solve = separator_mode(np.asarray(cov, dtype=np.float64), pairs=int(count.sum()) // 2)
     m = max(int((count + np.diff(o_start) + walls).max(initial=0)), 1)
-    A, b = np.empty((n, m, 2)), np.empty((n, m))
-    valid, kinds, src = np.empty((n, m), np.bool_), np.empty((n, m), np.int8), np.empty((n, m), np.intp)
+    A, b = reused_array("cell.A", (n, m, 2), np.float64), reused_array("cell.b", (n, m), np.float64)
+    valid, kinds, src = (reused_array(f"cell.{name}", (n, m), dtype) for name, dtype in (("valid", np.bool_), ("kind", np.int8), ("source", np.intp)))
     c = np.asarray(cov, dtype=np.float64)
     args = (p, near, count, mode, solve, c[0, 0], c[0, 1], c[1, 1], float(quantile), np.ascontiguousarray(radius, dtype=np.float64),
             o_start, o_a, o_b, o_src, wall_a, wall_b, wall_spread, local_box, A, b, valid, kinds, src)
@@ -287,7 +287,7 @@ def _gather(grid, wall_a, wall_b, n, parallel):
     count, walls = np.empty(n, np.int64), np.empty(n, np.int64)
     width = _NEAR
     while True:
-        near = np.empty((n, width), np.int32 if n < 2**31 else np.int64)
+        near = work_array("cell.near", (n, width), np.int32 if n < 2**31 else np.int64)  # read by the filling pass only
         if parallel:
             _gather_parallel(*grid, wall_a, wall_b, near, count, walls)
         else:
