@@ -305,7 +305,8 @@ def test_parking_observation_is_the_two_trackers_in_turn(parked_steps, seed):
     params = YieldingParams(still_radius=float(rng.uniform(0.2, 0.6)), still_steps=int(rng.integers(1, 5)),
                             max_aside=float(rng.uniform(0.1, 1.0)), parked_steps=parked_steps)
     state = ParkingState.initial(n)
-    mean, still, anchor, since = state.stillness.mean.copy(), state.stillness.still.copy(), state.resting.anchor.copy(), state.resting.since.copy()
+    mean, still = state.stillness.mean.copy(), state.stillness.still.copy()
+    anchor, since = state.resting.anchor.copy(), state.resting.since.copy()
     seen = np.zeros(n, bool)
     for est in wandering_estimates(rng, n, 2, 30):
         got_still, got_resting = state.observe(est, params)

@@ -235,7 +235,8 @@ def _shared_cells_2d(p, cov, radius, quantile, geometry: CellGeometry, obstacles
     mode, solve = separator_mode(np.asarray(cov, dtype=np.float64), pairs=int(count.sum()) // 2)
     m = max(int((count + np.diff(o_start) + walls).max(initial=0)), 1)
     A, b = reused_array("cell.A", (n, m, 2), np.float64), reused_array("cell.b", (n, m), np.float64)
-    valid, kinds, src = (reused_array(f"cell.{name}", (n, m), dtype) for name, dtype in (("valid", np.bool_), ("kind", np.int8), ("source", np.intp)))
+    valid, kinds = reused_array("cell.valid", (n, m), np.bool_), reused_array("cell.kind", (n, m), np.int8)
+    src = reused_array("cell.source", (n, m), np.intp)
     c = np.asarray(cov, dtype=np.float64)
     args = (p, near, count, mode, solve, c[0, 0], c[0, 1], c[1, 1], float(quantile), np.ascontiguousarray(radius, dtype=np.float64),
             o_start, o_a, o_b, o_src, wall_a, wall_b, wall_spread, local_box, A, b, valid, kinds, src)

@@ -1,5 +1,7 @@
 """Threads of the compiled avoidance kernels (cells, projection, ORCA, neighbour search),
-and products of many short rows kept off OpenBLAS's threads (:func:`row_products`).
+products of many short rows kept off OpenBLAS's threads (:func:`row_products`), and the
+per-thread buffers that large per-step arrays reuse (:func:`work_array`,
+:func:`reused_array`).
 
 The kernels run robots in parallel with ``numba.prange`` when a fleet has at least
 :data:`PARALLEL_MIN_ROBOTS` robots (below that, starting the threads costs more than it
@@ -123,4 +125,6 @@ def reused_array(key: str, shape: tuple[int, ...], dtype) -> np.ndarray:
 
 _UNUSED = 3
 """References to a kept buffer that nothing else uses, as :func:`reused_array` counts
-them: the kept list, the loop variable and ``getrefcount``'s argument."""
+them in CPython: the kept list, the loop variable and ``getrefcount``'s argument
+(``tests/avoidance/test_cell_kernels.py`` checks that released buffers are reused and
+held ones never are)."""

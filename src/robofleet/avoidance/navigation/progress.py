@@ -47,6 +47,7 @@ import numpy as np
 
 from .goal import row_distance
 
+
 @dataclass(frozen=True)
 class DeadlockParams:
     """The recovery stage's parameter block, with the progress window that triggers it

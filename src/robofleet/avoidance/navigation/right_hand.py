@@ -152,7 +152,8 @@ def turned_projection(estimates: np.ndarray, targets: np.ndarray, cells: Cells, 
 def _projected_parallel(targets, estimates, A, b, valid, kind, driving, near, point, empty, active, turn):
     n = len(targets)
     for c in numba.prange((n + _CHUNK - 1) // _CHUNK):
-        _projected_range(c * _CHUNK, min(n, (c + 1) * _CHUNK), targets, estimates, A, b, valid, kind, driving, near, point, empty, active, turn)
+        _projected_range(c * _CHUNK, min(n, (c + 1) * _CHUNK), targets, estimates, A, b, valid, kind, driving, near, point, empty, active,
+                         turn)
 
 
 @numba.njit(cache=True)
