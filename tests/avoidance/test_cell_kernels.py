@@ -222,6 +222,14 @@ def test_reused_arrays_are_never_ones_still_referenced():
     assert reused > 100
 
 
+def test_arrays_beyond_the_kept_size_are_fresh(monkeypatch):
+    monkeypatch.setattr(kernels, "KEEP_BYTES", 800)
+    for make in (kernels.reused_array, kernels.work_array):
+        small = [id(make(f"test.{make.__name__}", (10, 10), np.float64).base) for _ in range(3)]
+        large = [make(f"test.{make.__name__}.large", (10, 11), np.float64) for _ in range(3)]
+        assert len(set(small)) == 1 and all(a.base is None and a.shape == (10, 11) for a in large)
+
+
 def test_cells_kept_by_the_caller_are_not_overwritten_by_later_cells():
     """The cells' arrays come from reused buffers: cells a caller keeps stay as built while
     the next steps' cells are built, on this thread and on another."""

@@ -80,16 +80,24 @@ def row_products(x: np.ndarray, matrix: np.ndarray) -> np.ndarray:
     return out
 
 
+KEEP_BYTES = 16 << 20
+"""Largest buffer :func:`work_array` and :func:`reused_array` keep (16 MiB, the cells of
+some 70,000 robots): larger arrays are allocated afresh, as a thread keeps its buffers
+after a run ends, and at that size a step's own work dwarfs its page faults."""
+
 _WORK = threading.local()
 
 
 def work_array(key: str, shape: tuple[int, ...], dtype) -> np.ndarray:
     """A C-contiguous work array of ``shape`` for a temporary that does not outlive its
     call, kept per thread under ``key`` and reused by the next call with that key on the
-    same thread (grown when too small; contents undefined). Arrays of a megabyte allocated
-    afresh every step cost their page faults every step (the allocator hands the freed
-    pages back): at 10,000 robots the cells' neighbour table alone took 160 faults."""
+    same thread (grown when too small; contents undefined; not kept beyond
+    :data:`KEEP_BYTES`). Arrays of a megabyte allocated afresh every step cost their page
+    faults every step (the allocator hands the freed pages back): at 10,000 robots the
+    cells' neighbour table alone took 160 faults."""
     size, dtype = prod(shape), np.dtype(dtype)
+    if size * dtype.itemsize > KEEP_BYTES:
+        return np.empty(shape, dtype)
     pool = _WORK.__dict__
     buffer = pool.get(key)
     if buffer is None or buffer.dtype != dtype or buffer.size < size:
@@ -98,20 +106,22 @@ def work_array(key: str, shape: tuple[int, ...], dtype) -> np.ndarray:
 
 
 _KEPT = threading.local()
-KEPT_PER_KEY = 3
-"""Buffers :func:`reused_array` keeps per key and thread: the arrays of the last steps
-(a caller that still holds the previous step's result keeps one busy)."""
+KEPT_PER_KEY = 2
+"""Buffers :func:`reused_array` keeps per key and thread: this step's arrays and the last
+step's, which a caller still holds while it builds the next."""
 
 
 def reused_array(key: str, shape: tuple[int, ...], dtype) -> np.ndarray:
     """A C-contiguous array of ``shape`` (contents undefined) to return to the caller,
     made from a buffer the calling thread kept under ``key`` that no array refers to any
     more, else from a new buffer that is then kept (at most :data:`KEPT_PER_KEY`, the
-    oldest let go). An array made from a buffer refers to it (numpy's ``base``), and so
-    does every view of it, so a buffer is reused only once every array made from it is
-    gone; what a caller keeps is never overwritten. Saves the page faults of allocating
-    the cells' megabytes afresh every step (:func:`work_array`)."""
+    oldest let go; none beyond :data:`KEEP_BYTES`). An array made from a buffer refers to
+    it (numpy's ``base``), and so does every view of it, so a buffer is reused only once
+    every array made from it is gone; what a caller keeps is never overwritten. Saves the
+    page faults of allocating the cells' megabytes afresh every step (:func:`work_array`)."""
     size, dtype = prod(shape), np.dtype(dtype)
+    if size * dtype.itemsize > KEEP_BYTES:
+        return np.empty(shape, dtype)
     kept = _KEPT.__dict__.setdefault(key, [])
     for buffer in kept:
         if buffer.dtype == dtype and buffer.size >= size and sys.getrefcount(buffer) == _UNUSED:
