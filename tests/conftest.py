@@ -91,3 +91,13 @@ def pytest_collection_modifyitems(config, items):
         if home is not None:
             item.add_marker(pytest.mark.xdist_group(home))
     items.sort(key=lambda item: (item.get_closest_marker("slow") is None, item.get_closest_marker("extended") is None))
+
+
+@pytest.hookimpl(tryfirst=True)
+def pytest_sessionstart(session):
+    """With test workers (``-n``), fill numba's cache before they start, when it is empty
+    (:mod:`kernel_cache`): each kernel is then compiled once, not once per worker."""
+    if session.config.pluginmanager.has_plugin("dsession"):
+        import kernel_cache
+
+        kernel_cache.warm_up()

@@ -1,0 +1,94 @@
+"""Fill numba's on-disk cache before the test workers start, when it is empty.
+
+Each robofleet kernel is compiled once per environment and cached on disk (``cache=True``;
+``tests/test_compiled_kernels.py``). With an empty cache — a fresh clone, as in CI — the
+two test workers would each compile the same kernels at the same time, in their first
+tests. Instead the controller runs a few steps of every shipped scenario first, in two
+processes side by side (one per worker, the families split by compile time), and the
+workers load what those compiled. Run as a script it warms the families it is given:
+``python tests/kernel_cache.py avoidance flocking``.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+SOURCES = Path(__file__).resolve().parents[1] / "src" / "robofleet"
+
+SHORT_RUNS = {"avoidance": {"max_steps": 3}, "coordination": {"simulation.max_steps": 30}, "flocking": {"duration": 3},
+              "search": {}}
+"""Overrides that cut every shipped scenario of a family to a few steps: enough to call
+every kernel its run calls, with the argument types of a full run."""
+
+VARIANTS = {"avoidance/ten_boxes": [{"method": method} for method in ("bvc", "orca")],
+            "coordination/x_corridor_5_tff": [{"policy.method": method, "simulation.max_steps": 400}
+                                              for method in ("rmtrack", "tfa", "btpg", "optimal")]}
+"""Further runs of a scenario, for the kernels of the methods its file does not use."""
+
+WARM_UP_GROUPS = (("avoidance", "flocking"), ("coordination", "search"))
+"""Families per warm-up process, about equal in compile time (each near 30 s of CPU)."""
+
+
+CACHED_KERNEL = re.compile(r"^@numba\.njit\((?![^)]*inline=.always.)", re.MULTILINE)
+"""A kernel of its own in the cache (``inline="always"`` ones are compiled into their callers)."""
+
+
+def kernel_sources() -> list[Path]:
+    """The robofleet modules that define kernels cached on their own."""
+    return [path for path in SOURCES.rglob("*.py") if CACHED_KERNEL.search(path.read_text(encoding="utf-8"))]
+
+
+def cache_directory(source: Path) -> Path:
+    """Where numba caches the kernels of ``source`` (its ``__pycache__``, or the folder
+    numba derives from ``NUMBA_CACHE_DIR``)."""
+    from numba.core import caching, config
+
+    if config.CACHE_DIR:
+        return Path(config.CACHE_DIR) / caching.UserProvidedCacheLocator.get_suitable_cache_subpath(str(source))
+    return source.parent / "__pycache__"
+
+
+def is_warm() -> bool:
+    """Whether every kernel module has a cache index at least as new as its source (a
+    stale or missing index means its kernels would be compiled by the next run)."""
+    for source in kernel_sources():
+        written = [index.stat().st_mtime for index in cache_directory(source).glob(f"{source.stem}.*.nbi")]
+        if not written or max(written) < source.stat().st_mtime:
+            return False
+    return True
+
+
+def warm_up() -> None:
+    """Compile into the cache in :data:`WARM_UP_GROUPS` processes side by side, unless it
+    is warm already. A scenario that fails to run is left to the tests to report."""
+    if os.environ.get("NUMBA_DISABLE_JIT") == "1" or is_warm():
+        return
+    env = {**os.environ, "MPLBACKEND": "Agg"}
+    processes = [subprocess.Popen([sys.executable, __file__, *families], env=env, stdout=subprocess.DEVNULL,
+                                  stderr=subprocess.DEVNULL) for families in WARM_UP_GROUPS]
+    for process in processes:
+        process.wait()
+
+
+def run_families(families: list[str]) -> None:
+    """A few steps of every shipped scenario of ``families`` (and its :data:`VARIANTS`), seed 1."""
+    import robofleet
+    from robofleet.scenarios import catalogue
+
+    for name in catalogue.names():
+        family = name.split("/")[0]
+        if family not in families:
+            continue
+        for overrides in [{}, *VARIANTS.get(name, [])]:
+            try:
+                robofleet.simulate(robofleet.load_scenario(name, {**SHORT_RUNS[family], **overrides}), seed=1)
+            except Exception:  # noqa: BLE001 - the tests of that scenario report it
+                continue
+
+
+if __name__ == "__main__":
+    run_families(sys.argv[1:])
