@@ -2,6 +2,7 @@
 from docs/**/*.md, the API reference from the docstrings, the scenario and summary-key
 references generated from the code by ``_ext/robofleet_reference.py``). Build: ``make docs``."""
 
+import re
 import sys
 from importlib.metadata import version as installed_version
 from pathlib import Path
@@ -18,6 +19,7 @@ extensions = [
     "sphinx.ext.viewcode",
     "myst_parser",
     "robofleet_reference",
+    "outside_names",
 ]
 source_suffix = {".rst": "restructuredtext", ".md": "markdown"}
 exclude_patterns = ["_build", "_ext", "results/coordination"]
@@ -40,3 +42,19 @@ myst_enable_extensions = ["dollarmath"]
 html_theme = "furo"
 html_title = f"robofleet {release}"
 nitpicky = False
+
+
+TYPER_METADATA = re.compile(r"Annotated\[(.*?), <typer\.models\.\w+ object at 0x[0-9a-f]+>\]")
+"""A CLI command's parameter type as autodoc writes it: the type with typer's option object."""
+
+
+def cli_types_without_typer_objects(app, objtype, name, obj, options, args, retann):
+    """The CLI commands' parameter types without typer's option objects, whose text is
+    their memory address (``Annotated[bool, <typer.models.OptionInfo object at 0x…>]``
+    becomes ``bool``); the options themselves are documented in the CLI reference."""
+    for key, text in app.env.current_document.autodoc_annotations.get(name, {}).items():
+        app.env.current_document.autodoc_annotations[name][key] = TYPER_METADATA.sub(r"\1", text)
+
+
+def setup(app):
+    app.connect("autodoc-process-signature", cli_types_without_typer_objects, priority=600)
