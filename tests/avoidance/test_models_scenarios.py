@@ -212,3 +212,34 @@ def test_shipped_3d_step_budgets_follow_the_straight_line_rule(name):
     spec = robofleet.load_scenario(SCENARIOS / name)
     assert spec.max_steps == straight_line_budget(spec)
     assert "straight_line_budget" in (SCENARIOS / name).read_text()
+
+
+@pytest.mark.parametrize("name", ["heterogeneous.yaml", "quadrotors_3d.yaml", "circle_swap.yaml"])
+def test_metadata_per_robot_lists_are_the_teams_values_as_plain_json(name):
+    """The run's metadata repeats each team's value per robot, every element a plain
+    Python value, and equals the element-by-element conversion of the same fields."""
+    import json
+
+    from robofleet.avoidance.world import World, team_covariance
+    from robofleet.core.trace import to_plain
+
+    spec = robofleet.load_scenario(SCENARIOS / name)
+    world = World(spec, np.random.default_rng(0))
+    meta = world.metadata()
+    teams = spec.team_specs()
+    per_robot = lambda values: [v for t, v in zip(teams, values) for _ in range(t.n)]  # noqa: E731
+    covs = [team_covariance(t, world.dim) for t in teams]
+    shared = world.dim == 2 and covs[0].ndim == 2 and all(np.array_equal(c, covs[0]) for c in covs)
+    expected = to_plain({
+        "method": spec.method, "dt": spec.dt, "radius": spec.robots.radius, "goals": world.goals, "starts": world.starts,
+        "goal_tolerance": spec.goal_tolerance, "delta": spec.delta, "local_box": spec.local_box, "dim": world.dim,
+        "teams": per_robot([t.name for t in teams]), "models": per_robot([t.model.kind for t in teams]),
+        "controllers": per_robot([t.model.controller for t in teams]), "v_max": per_robot([t.v_max for t in teams]),
+        "sigma": per_robot([t.largest_sigma() for t in teams]), "robot_cov": covs[0] if shared else None,
+        "boxes": [{"center": list(b.center), "size": list(b.size), "yaw": b.yaw} for b in spec.space3d.boxes] if spec.space3d else [],
+        "bounds3d": list(spec.space3d.bounds) if spec.space3d is not None else None,
+    })
+    assert meta == expected and list(meta) == list(expected)
+    assert json.dumps(meta) == json.dumps(expected)
+    for key in ("teams", "models", "controllers", "v_max", "sigma"):
+        assert len(meta[key]) == world.n and all(type(v) in (str, float, int) for v in meta[key])

@@ -144,3 +144,19 @@ def test_gap_blockers_close_exactly_the_gaps_narrower_than_the_width():
     (wall,) = gap_blockers(boxes, 1.41)
     assert Polygon(wall).intersects(LineString([(-1, 0), (1, 0)]))  # across the 1.4 m gap
     assert not segments_free(np.array([[-1.0, 0.0]]), np.array([[1.0, 0.0]]), halfplanes([wall]))[0]
+
+
+def test_parking_targets_while_nobody_is_parked_are_the_goals_themselves():
+    """While no robot has arrived the yielding rule leaves every target as it is: it
+    returns the goals array itself (no copy) and nobody moves, and its trackers still
+    advance and its modes and counts stay reset."""
+    from robofleet.avoidance.navigation.params import YieldingParams
+    from robofleet.avoidance.navigation.yielding import HOLD, ParkingState, parking_targets
+
+    rng = np.random.default_rng(5)
+    n = 200
+    goals, state = rng.normal(size=(n, 2)) * 5.0, ParkingState.initial(n)
+    for _ in range(4):
+        target, moving = parking_targets(goals + rng.normal(size=(n, 2)), goals, np.zeros(n, bool), state, YieldingParams())
+        assert target is goals and not moving.any()
+        assert (state.mode == HOLD).all() and not state.linger.any() and not state.clear.any()

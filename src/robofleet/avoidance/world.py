@@ -460,17 +460,23 @@ class World:
                                 mpc_solve_steps=sum(nav.solve_steps for nav in navs))
 
     def metadata(self) -> dict:
-        """What is needed to interpret the arrays (viz, metrics, replays), as plain JSON values."""
+        """What is needed to interpret the arrays (viz, metrics, replays), as plain JSON values.
+        The per-robot lists repeat each team's plain value (one conversion per team, not
+        per robot: converting a million robots' lists one element at a time took seconds)."""
         spec, teams = self.spec, self.spec.team_specs()
         covs = [team_covariance(t, self.dim) for t in teams]
-        per_robot = lambda values: [v for t, v in zip(teams, values) for _ in range(t.n)]  # noqa: E731
+        per_robot = lambda values: [v for t, v in zip(teams, to_plain(list(values))) for _ in range(t.n)]  # noqa: E731
         shared = self.dim == 2 and covs[0].ndim == 2 and all(np.array_equal(c, covs[0]) for c in covs)
-        return to_plain({
+        head = to_plain({
             "method": spec.method, "dt": spec.dt, "radius": spec.robots.radius, "goals": self.goals, "starts": self.starts,
             "goal_tolerance": spec.goal_tolerance, "delta": spec.delta, "local_box": spec.local_box, "dim": self.dim,
-            "teams": per_robot([t.name for t in teams]), "models": per_robot([t.model.kind for t in teams]),
-            "controllers": per_robot([t.model.controller for t in teams]), "v_max": per_robot([t.v_max for t in teams]),
-            "sigma": per_robot([t.largest_sigma() for t in teams]), "robot_cov": covs[0] if shared else None,
+        })
+        robots = {"teams": per_robot([t.name for t in teams]), "models": per_robot([t.model.kind for t in teams]),
+                  "controllers": per_robot([t.model.controller for t in teams]), "v_max": per_robot([t.v_max for t in teams]),
+                  "sigma": per_robot([t.largest_sigma() for t in teams])}
+        tail = to_plain({
+            "robot_cov": covs[0] if shared else None,
             "boxes": [{"center": list(b.center), "size": list(b.size), "yaw": b.yaw} for b in spec.space3d.boxes] if spec.space3d else [],
             "bounds3d": list(spec.space3d.bounds) if spec.space3d is not None else None,
         })
+        return {**head, **robots, **tail}

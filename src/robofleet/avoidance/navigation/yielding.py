@@ -143,7 +143,7 @@ def parking_targets(estimates: np.ndarray, goals: np.ndarray, parked: np.ndarray
                     params: YieldingParams, local_box: float = np.inf, tolerance: float = 0.1) -> tuple[np.ndarray, np.ndarray]:
     """Advance the yielding rule one step; return each parked robot's target and which
     parked robots move this step (``(N, 2)``, ``(N,)``; rows of robots not parked are
-    their goals and ``False``).
+    their goals and ``False``; ``goals`` itself while nobody is parked).
 
     HOLD → YIELD once a neighbour that does not hold still (:meth:`ParkingState.observe`:
     B-UAVC robots tell their neighbours apart anyway, since each neighbour's Σ_j enters
@@ -177,7 +177,7 @@ def parking_targets(estimates: np.ndarray, goals: np.ndarray, parked: np.ndarray
     still, resting = state.observe(estimates, params)
     if not parked.any():  # what the rule below leaves when nobody is parked: all hold, no counts
         state.mode[:], state.linger[:], state.clear[:] = HOLD, 0, 0
-        return goals.copy(), np.zeros(len(estimates), bool)
+        return goals, np.zeros(len(estimates), bool)
     pairs = close_pairs(estimates, params.near, local_box) if parked.any() else np.zeros((0, 2), np.int64)
     pressing = np.linalg.norm(estimates[pairs[:, 0]] - estimates[pairs[:, 1]], axis=1) <= params.press
     pairs = pairs[~still[pairs[:, 1]] & (pressing | ~resting[pairs[:, 1]])]  # who holds still, or rests away, is not waiting to pass
