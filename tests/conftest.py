@@ -45,12 +45,14 @@ EXTENDED = (
     "test_benchmarks_smoke.py", "test_readme.py", "test_docs_snippets.py", "cli/test_memory_budget.py",
     "cli/test_run_interrupted.py", "avoidance/test_reproduce.py", "coordination/test_reproduce.py",
     "flocking/test_reproduce.py", "search/test_reproduce.py", "flocking/test_family.py", "coordination/test_family.py",
+    "avoidance/test_viz.py",
     # long randomized searches and closed loops of the algorithms
     "avoidance/test_braking_adversarial.py", "avoidance/test_braking.py", "avoidance/test_cell3d.py",
     "avoidance/test_cell_kernels.py", "avoidance/test_detour.py", "avoidance/test_liveness.py",
     "avoidance/test_models_scenarios.py", "avoidance/test_mpc.py", "avoidance/test_mpc_rti.py",
     "avoidance/test_navigation.py", "avoidance/test_orca.py", "avoidance/test_premise.py",
     "coordination/test_theorems.py", "coordination/test_supervisor_threads.py", "flocking/test_axis_slot.py",
+    "flocking/test_variants.py",
     "coordination/test_peers.py", "coordination/test_compiled.py", "search/test_baselines.py", "cli/test_damaged_traces.py",
 )
 """Tests (folders and files below tests/) left out of ``make check``, marked ``extended``:
