@@ -28,6 +28,17 @@ def ctrl_c_kept():
     assert signal.getsignal(signal.SIGINT) is handler
 
 
+@pytest.fixture(autouse=True)
+def dashboard_on_a_free_port():
+    """Each cluster's scheduler serves its dashboard on a free port rather than dask's fixed
+    8787, which another cluster (a test on the other worker) may hold at the same time."""
+    import dask
+
+    import_jobqueue()  # its defaults first: the setting below adds to them
+    with dask.config.set({f"jobqueue.{system}.scheduler-options": {"dashboard_address": ":0"} for system in ("slurm", "pbs")}):
+        yield
+
+
 def worker_command(script: str) -> str:
     return next(line for line in script.splitlines() if "distributed.cli.dask_worker" in line)
 
