@@ -370,7 +370,7 @@ def dask_client(scheduler: str | None, workers: int | None) -> tuple[Client, Loc
     if scheduler is None:
         cluster = distributed.LocalCluster(
             n_workers=workers or default_workers(), threads_per_worker=1, processes=True,
-            dashboard_address=None, silence_logs=logging.ERROR,
+            dashboard_address=":0", silence_logs=logging.ERROR,
         )
         return distributed.Client(cluster), cluster
     try:
