@@ -30,7 +30,7 @@ VARIANTS = {"avoidance/ten_boxes": [{"method": method} for method in ("bvc", "or
 """Further runs of a scenario, for the kernels of the methods its file does not use."""
 
 WARM_UP_GROUPS = (("avoidance", "flocking"), ("coordination", "search"))
-"""Families per warm-up process, about equal in compile time (each near 30 s of CPU)."""
+"""Families per warm-up process, split so that both compile for about as long."""
 
 
 CACHED_KERNEL = re.compile(r"^@numba\.njit\((?![^)]*inline=.always.)", re.MULTILINE)
