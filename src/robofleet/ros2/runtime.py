@@ -8,6 +8,8 @@ module loads without the ``ros2`` extra.
 from __future__ import annotations
 
 import re
+import signal
+import threading
 import time
 from collections.abc import Callable
 from typing import Any
@@ -96,23 +98,32 @@ class BadInputLog:
 
 def run_node(make_node: Callable[[], Any], done: Callable[[Any], bool] | None = None) -> int:
     """Start rclpy, build the node, spin it until ``done(node)`` or Ctrl-C / SIGTERM, then
-    destroy it and shut rclpy down. Returns the exit status: 0 for a normal stop."""
+    destroy it and shut rclpy down. Returns the exit status: 0 for a normal stop.
+
+    Ctrl-C and SIGTERM only ask the loop to stop (checked every 0.1 s); they raise nothing,
+    so a signal that lands inside a callback or a first kernel compile cannot print an
+    ignored exception there. (rclpy's own handlers, which raise ``KeyboardInterrupt``
+    wherever the main thread is, stay off while a handler of ours is installed.)"""
     import rclpy
     from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+    from rclpy.signals import SignalHandlerOptions
 
-    rclpy.init()
+    stop = threading.Event()
+    ours = threading.current_thread() is threading.main_thread()
+    previous = {s: signal.signal(s, lambda *_: stop.set()) for s in (signal.SIGINT, signal.SIGTERM)} if ours else {}
+    rclpy.init(signal_handler_options=SignalHandlerOptions.NO if ours else None)
     node = None
     try:
         node = make_node()
         executor = SingleThreadedExecutor()
         executor.add_node(node)
-        while rclpy.ok() and not (done is not None and done(node)):
+        while rclpy.ok() and not stop.is_set() and not (done is not None and done(node)):
             executor.spin_once(timeout_sec=0.1)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except RuntimeError:
-        # Ctrl-C shuts the context down from rclpy's signal handler; a take in flight then
-        # fails on the invalidated handle. That is the stop, not an error of the node.
+        # a shutdown from outside invalidates the handles; a take in flight then fails on
+        # its handle. That is the stop, not an error of the node.
         if rclpy.ok():
             raise
     finally:
@@ -122,4 +133,6 @@ def run_node(make_node: Callable[[], Any], done: Callable[[Any], bool] | None = 
                 finish()
             node.destroy_node()
         rclpy.try_shutdown()
+        for number, handler in previous.items():
+            signal.signal(number, handler)
     return 0
