@@ -6,9 +6,13 @@ STAMP  := $(VENV)/.installed
 
 .PHONY: demo check test bench docs clean install
 
+# uv installs from its cache in parallel; every module is byte-compiled once here, so that no
+# process (test workers, the command lines the tests start) compiles the sources again
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
-	$(BIN)/python -m pip install --quiet --disable-pip-version-check --no-compile -e ".[all]"
+	$(BIN)/python -m pip install --quiet --disable-pip-version-check uv
+	$(BIN)/uv pip install --quiet --python $(BIN)/python --compile-bytecode -e ".[all]"
+	$(BIN)/python -m compileall -q src
 	touch $(STAMP)
 
 install: $(STAMP)
@@ -31,7 +35,7 @@ docs: $(STAMP)
 	MPLBACKEND=Agg $(BIN)/python -m sphinx -W --keep-going -q -b html docs docs/_build/html
 
 bench: $(STAMP)
-	$(BIN)/python -m pip install --quiet -e ".[bench]"
+	$(BIN)/uv pip install --quiet --python $(BIN)/python -e ".[bench]"
 	$(BIN)/python benchmarks/run_all.py
 
 clean:

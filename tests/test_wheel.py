@@ -24,13 +24,15 @@ def run(*args, cwd, env=None, timeout=900):
 
 @pytest.fixture(scope="module")
 def wheel_venv(tmp_path_factory):
+    """The wheel built from the source tree, installed with its dependencies into a new
+    virtual environment (uv: from its cache, byte-compiled as an installer does)."""
     base = tmp_path_factory.mktemp("wheel")
-    run(sys.executable, "-m", "build", "--wheel", "--outdir", base / "dist", ROOT, cwd=base)
+    uv = (sys.executable, "-m", "uv")
+    run(*uv, "build", "--quiet", "--wheel", "--out-dir", base / "dist", ROOT, cwd=base)
     (wheel,) = (base / "dist").glob("robofleet-*.whl")
     venv = base / "venv"
-    run(getattr(sys, "_base_executable", sys.executable), "-m", "venv", venv, cwd=base)
-    # no byte-compiling of every installed file: the runs below compile what they import
-    run(venv / "bin" / "python", "-m", "pip", "install", "--quiet", "--disable-pip-version-check", "--no-compile", wheel, cwd=base)
+    run(*uv, "venv", "--quiet", "--python", getattr(sys, "_base_executable", sys.executable), venv, cwd=base)
+    run(*uv, "pip", "install", "--quiet", "--python", venv / "bin" / "python", "--compile-bytecode", wheel, cwd=base)
     return venv
 
 
