@@ -253,3 +253,46 @@ def test_cells_kept_by_the_caller_are_not_overwritten_by_later_cells():
     again = build(0)
     for got, want in zip((again.A, again.b, again.valid, again.kind, again.source), expected):
         np.testing.assert_array_equal(got, want)
+
+
+def test_run_buffers_keep_arrays_of_any_size_and_let_the_large_ones_go_after(monkeypatch):
+    """Within ``kernels.run_buffers`` arrays beyond ``KEEP_BYTES`` are kept and reused (a
+    run's steps reuse their cells however large the fleet); leaving the outermost block
+    lets them go, keeps the small ones, and leaves arrays still held intact."""
+    monkeypatch.setattr(kernels, "KEEP_BYTES", 800)
+    for make in (kernels.reused_array, kernels.work_array):
+        key = f"test.run.{make.__name__}"
+        small = id(make(key + ".small", (10, 10), np.float64).base)
+        with kernels.run_buffers():
+            with kernels.run_buffers():
+                large = [id(make(key, (10, 11), np.float64).base) for _ in range(3)]
+            held = make(key, (10, 11), np.float64)
+            held[...] = 7.0
+            assert len(set(large)) == 1 and id(held.base) == large[0]
+        assert make(key, (10, 11), np.float64).base is None
+        assert id(make(key + ".small", (10, 10), np.float64).base) == small
+        np.testing.assert_array_equal(held, 7.0)
+
+
+def test_a_run_reusing_its_large_buffers_reproduces_one_allocating_them_afresh(monkeypatch):
+    """A navigation-on run whose every cell array comes from a kept buffer (all of them
+    beyond ``KEEP_BYTES``, reused step after step within ``run_buffers``) records the
+    same trace, bit for bit, as one allocating every array afresh (the buffers' stale
+    contents never reach a result)."""
+    import contextlib
+
+    import robofleet
+    from robofleet.avoidance import simulation
+
+    spec = robofleet.load_scenario({"family": "avoidance", "name": "swap", "max_steps": 30, "record_cells": False,
+                                    "workspace": {"bounds": [-5, -5, 5, 5], "obstacles": [{"center": [0, 2.5], "size": [1, 1]}]},
+                                    "robots": {"n": 24, "radius": 0.2, "v_max": 0.4, "sigma": 0.1, "layout": {"kind": "circle", "radius": 4.0}},
+                                    "navigation": {"enabled": True}})
+    monkeypatch.setattr(kernels, "KEEP_BYTES", 0)
+    reused = robofleet.simulate(spec, seed=5)
+    monkeypatch.setattr(simulation, "run_buffers", contextlib.nullcontext)
+    fresh = robofleet.simulate(spec, seed=5)
+    assert reused.arrays.keys() == fresh.arrays.keys()
+    for name in fresh.arrays:
+        if name != "step_seconds":
+            np.testing.assert_array_equal(reused.arrays[name], fresh.arrays[name], err_msg=name)

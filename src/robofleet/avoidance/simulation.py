@@ -17,6 +17,7 @@ from ..core.family import expect_spec
 from ..core.recorder import Recorder
 from ..core.rng import as_generator, resolve_seed
 from ..core.trace import Trace
+from .kernels import run_buffers
 from .metrics import RunTally
 from .spec import Spec
 from .navigation.pipeline import MPC_NO_MPC
@@ -121,7 +122,8 @@ def simulate(spec: Spec, seed: int | None = None, progress: bool = False) -> Tra
             cell_log.append((cells.A, cells.b))
         return rec.all_arrived and bool(world.home().all())
 
-    rec.run(step)
+    with run_buffers():  # the steps reuse their large arrays (cells, neighbour tables)
+        rec.run(step)
     loop_seconds = rec.wall_seconds - tally.seconds  # the step loop without tallying the per-run results
     if cell_log:
         record_cell_log(rec, cell_log)
