@@ -104,7 +104,7 @@ def simulate(spec: Spec, seed: int | None = None, progress: bool = False) -> Tra
         rec.step("mpc_status", (world.n,), dtype=np.int8, fill=MPC_NO_MPC)
 
     def step(k: int) -> bool:
-        estimates = world.positions() + world.position_noise(rng)
+        estimates = world.estimates(rng)
         shift = world.obstacle_shift(rng)
         with rec.timed(k):
             cells, controls, flags = world.decide(estimates, shift)
