@@ -276,9 +276,9 @@ def test_run_buffers_keep_arrays_of_any_size_and_let_the_large_ones_go_after(mon
 
 def test_a_run_reusing_its_large_buffers_reproduces_one_allocating_them_afresh(monkeypatch):
     """A navigation-on run whose every cell array comes from a kept buffer (all of them
-    beyond ``KEEP_BYTES``, reused step after step within ``run_buffers``) records the
-    same trace, bit for bit, as one allocating every array afresh (the buffers' stale
-    contents never reach a result)."""
+    beyond ``KEEP_BYTES``, reused step after step within ``run_buffers``), its kernels on
+    two threads, records the same trace, bit for bit, as one allocating every array
+    afresh on one thread (the buffers' stale contents never reach a result)."""
     import contextlib
 
     import robofleet
@@ -289,9 +289,15 @@ def test_a_run_reusing_its_large_buffers_reproduces_one_allocating_them_afresh(m
                                     "robots": {"n": 24, "radius": 0.2, "v_max": 0.4, "sigma": 0.1, "layout": {"kind": "circle", "radius": 4.0}},
                                     "navigation": {"enabled": True}})
     monkeypatch.setattr(kernels, "KEEP_BYTES", 0)
-    reused = robofleet.simulate(spec, seed=5)
-    monkeypatch.setattr(simulation, "run_buffers", contextlib.nullcontext)
-    fresh = robofleet.simulate(spec, seed=5)
+    monkeypatch.setattr(kernels, "PARALLEL_MIN_ROBOTS", 1)
+    try:
+        kernels.set_threads(min(2, numba.config.NUMBA_NUM_THREADS))
+        reused = robofleet.simulate(spec, seed=5)
+        monkeypatch.setattr(simulation, "run_buffers", contextlib.nullcontext)
+        kernels.set_threads(1)
+        fresh = robofleet.simulate(spec, seed=5)
+    finally:
+        kernels.set_threads(numba.config.NUMBA_NUM_THREADS)
     assert reused.arrays.keys() == fresh.arrays.keys()
     for name in fresh.arrays:
         if name != "step_seconds":
