@@ -125,6 +125,7 @@ def test_nearest_neighbours_match_brute_force_with_ties():
 
 def test_kernels_give_identical_results_on_one_and_two_threads(monkeypatch):
     """Robots are independent in every kernel: the thread count changes nothing, bit for bit."""
+    from robofleet.avoidance.navigation.yielding import StillTracker
     from robofleet.avoidance.orca import OrcaParams, orca_velocities
 
     monkeypatch.setattr(kernels, "PARALLEL_MIN_ROBOTS", 1)
@@ -138,7 +139,11 @@ def test_kernels_give_identical_results_on_one_and_two_threads(monkeypatch):
         cells = build_cells(p, covs, np.full(600, 0.2), 1.63, geo, 2.0)
         proj = project_onto_cells(-p, cells)
         v, infeasible = orca_velocities(p, vel, pref, 0.2, 0.4, OrcaParams(), 0.1)
-        results.append((cells.A, cells.b, cells.source, proj.point, proj.active, v, infeasible))
+        inside = cells.contains(p + vel)
+        still = StillTracker.initial(600)
+        for estimates in (p, p + 0.01 * vel, p + 0.2 * vel):
+            still.observe(estimates, 0.05, 10)
+        results.append((cells.A, cells.b, cells.source, proj.point, proj.active, v, infeasible, inside, still.mean, still.still))
     kernels.set_threads(numba.config.NUMBA_NUM_THREADS)
     for a, b in zip(*results):
         assert np.array_equal(a, b, equal_nan=True)
