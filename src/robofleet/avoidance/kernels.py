@@ -128,9 +128,9 @@ def work_array(key: str, shape: tuple[int, ...], dtype) -> np.ndarray:
     """A C-contiguous work array of ``shape`` for a temporary that does not outlive its
     call, kept per thread under ``key`` and reused by the next call with that key on the
     same thread (grown when too small; contents undefined; not kept beyond
-    :data:`KEEP_BYTES` outside :func:`run_buffers`). Arrays of a megabyte allocated afresh every step cost their page
-    faults every step (the allocator hands the freed pages back): at 10,000 robots the
-    cells' neighbour table alone took 160 faults."""
+    :data:`KEEP_BYTES` outside :func:`run_buffers`). Arrays of a megabyte allocated afresh
+    every step cost their page faults every step (the allocator hands the freed pages
+    back): at 10,000 robots the cells' neighbour table alone took 160 faults."""
     size, dtype = prod(shape), np.dtype(dtype)
     if size * dtype.itemsize > kept_bytes():
         return np.empty(shape, dtype)
@@ -150,10 +150,11 @@ def reused_array(key: str, shape: tuple[int, ...], dtype) -> np.ndarray:
     """A C-contiguous array of ``shape`` (contents undefined) to return to the caller,
     made from a buffer the calling thread kept under ``key`` that no array refers to any
     more, else from a new buffer that is then kept (at most :data:`KEPT_PER_KEY`, the
-    oldest let go; none beyond :data:`KEEP_BYTES` outside :func:`run_buffers`). An array made from a buffer refers to
-    it (numpy's ``base``), and so does every view of it, so a buffer is reused only once
-    every array made from it is gone; what a caller keeps is never overwritten. Saves the
-    page faults of allocating the cells' megabytes afresh every step (:func:`work_array`)."""
+    oldest let go; none beyond :data:`KEEP_BYTES` outside :func:`run_buffers`). An array
+    made from a buffer refers to it (numpy's ``base``), and so does every view of it, so a
+    buffer is reused only once every array made from it is gone; what a caller keeps is
+    never overwritten. Saves the page faults of allocating the cells' megabytes afresh
+    every step (:func:`work_array`)."""
     size, dtype = prod(shape), np.dtype(dtype)
     if size * dtype.itemsize > kept_bytes():
         return np.empty(shape, dtype)
