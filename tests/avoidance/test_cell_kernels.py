@@ -125,6 +125,7 @@ def test_nearest_neighbours_match_brute_force_with_ties():
 
 def test_kernels_give_identical_results_on_one_and_two_threads(monkeypatch):
     """Robots are independent in every kernel: the thread count changes nothing, bit for bit."""
+    from robofleet.avoidance.navigation.yielding import StillTracker
     from robofleet.avoidance.orca import OrcaParams, orca_velocities
 
     monkeypatch.setattr(kernels, "PARALLEL_MIN_ROBOTS", 1)
@@ -138,7 +139,11 @@ def test_kernels_give_identical_results_on_one_and_two_threads(monkeypatch):
         cells = build_cells(p, covs, np.full(600, 0.2), 1.63, geo, 2.0)
         proj = project_onto_cells(-p, cells)
         v, infeasible = orca_velocities(p, vel, pref, 0.2, 0.4, OrcaParams(), 0.1)
-        results.append((cells.A, cells.b, cells.source, proj.point, proj.active, v, infeasible))
+        inside = cells.contains(p + vel)
+        still = StillTracker.initial(600)
+        for estimates in (p, p + 0.01 * vel, p + 0.2 * vel):
+            still.observe(estimates, 0.05, 10)
+        results.append((cells.A, cells.b, cells.source, proj.point, proj.active, v, infeasible, inside, still.mean, still.still))
     kernels.set_threads(numba.config.NUMBA_NUM_THREADS)
     for a, b in zip(*results):
         assert np.array_equal(a, b, equal_nan=True)
@@ -253,3 +258,52 @@ def test_cells_kept_by_the_caller_are_not_overwritten_by_later_cells():
     again = build(0)
     for got, want in zip((again.A, again.b, again.valid, again.kind, again.source), expected):
         np.testing.assert_array_equal(got, want)
+
+
+def test_run_buffers_keep_arrays_of_any_size_and_let_the_large_ones_go_after(monkeypatch):
+    """Within ``kernels.run_buffers`` arrays beyond ``KEEP_BYTES`` are kept and reused (a
+    run's steps reuse their cells however large the fleet); leaving the outermost block
+    lets them go, keeps the small ones, and leaves arrays still held intact."""
+    monkeypatch.setattr(kernels, "KEEP_BYTES", 800)
+    for make in (kernels.reused_array, kernels.work_array):
+        key = f"test.run.{make.__name__}"
+        small = id(make(key + ".small", (10, 10), np.float64).base)
+        with kernels.run_buffers():
+            with kernels.run_buffers():
+                large = [id(make(key, (10, 11), np.float64).base) for _ in range(3)]
+            held = make(key, (10, 11), np.float64)
+            held[...] = 7.0
+            assert len(set(large)) == 1 and id(held.base) == large[0]
+        assert make(key, (10, 11), np.float64).base is None
+        assert id(make(key + ".small", (10, 10), np.float64).base) == small
+        np.testing.assert_array_equal(held, 7.0)
+
+
+def test_a_run_reusing_its_large_buffers_reproduces_one_allocating_them_afresh(monkeypatch):
+    """A navigation-on run whose every cell array comes from a kept buffer (all of them
+    beyond ``KEEP_BYTES``, reused step after step within ``run_buffers``), its kernels on
+    two threads, records the same trace, bit for bit, as one allocating every array
+    afresh on one thread (the buffers' stale contents never reach a result)."""
+    import contextlib
+
+    import robofleet
+    from robofleet.avoidance import simulation
+
+    spec = robofleet.load_scenario({"family": "avoidance", "name": "swap", "max_steps": 30, "record_cells": False,
+                                    "workspace": {"bounds": [-5, -5, 5, 5], "obstacles": [{"center": [0, 2.5], "size": [1, 1]}]},
+                                    "robots": {"n": 24, "radius": 0.2, "v_max": 0.4, "sigma": 0.1, "layout": {"kind": "circle", "radius": 4.0}},
+                                    "navigation": {"enabled": True}})
+    monkeypatch.setattr(kernels, "KEEP_BYTES", 0)
+    monkeypatch.setattr(kernels, "PARALLEL_MIN_ROBOTS", 1)
+    try:
+        kernels.set_threads(min(2, numba.config.NUMBA_NUM_THREADS))
+        reused = robofleet.simulate(spec, seed=5)
+        monkeypatch.setattr(simulation, "run_buffers", contextlib.nullcontext)
+        kernels.set_threads(1)
+        fresh = robofleet.simulate(spec, seed=5)
+    finally:
+        kernels.set_threads(numba.config.NUMBA_NUM_THREADS)
+    assert reused.arrays.keys() == fresh.arrays.keys()
+    for name in fresh.arrays:
+        if name != "step_seconds":
+            np.testing.assert_array_equal(reused.arrays[name], fresh.arrays[name], err_msg=name)

@@ -107,3 +107,33 @@ def test_singular_covariances_are_valid_input():
     })
     s = robofleet.simulate(spec, seed=1).summary()
     assert s["collisions"] == 0 and s["obstacle_collisions"] == 0
+
+
+def test_loop_seconds_time_the_steps_without_the_recorders_declarations(monkeypatch):
+    """``loop_seconds`` is the step loop alone: the recorder declaring (and filling) its
+    arrays before the first step is set-up. A fake clock jumps 1000 s while the arrays
+    are declared, and the steps still take well under that."""
+    import types
+
+    from robofleet.avoidance import metrics, simulation
+    from robofleet.core import recorder
+
+    now = [0.0]
+
+    def perf_counter():
+        now[0] += 1e-6
+        return now[0]
+
+    clock = types.SimpleNamespace(perf_counter=perf_counter)
+    monkeypatch.setattr(recorder, "time", clock)
+    monkeypatch.setattr(metrics, "time", clock)
+    monkeypatch.setattr(simulation, "time", clock, raising=False)
+    declare = recorder.Recorder.step
+
+    def slow_declare(self, *args, **kwargs):
+        now[0] += 1000.0
+        return declare(self, *args, **kwargs)
+
+    monkeypatch.setattr(recorder.Recorder, "step", slow_declare)
+    trace = robofleet.simulate(swap(4, max_steps=5), seed=0)
+    assert 0.0 <= trace.metadata["loop_seconds"] < 1000.0

@@ -118,7 +118,11 @@ class Cells:
         if self.A.shape[-1] != 2:
             return np.all(np.matmul(self.A, points[..., None])[..., 0] <= self.b + tol, axis=1)
         inside = np.empty(len(points), np.bool_)
-        _contains_2d(np.ascontiguousarray(self.A), np.ascontiguousarray(self.b), np.ascontiguousarray(points, dtype=np.float64), float(tol), inside)
+        args = (np.ascontiguousarray(self.A), np.ascontiguousarray(self.b), np.ascontiguousarray(points, dtype=np.float64), float(tol), inside)
+        if use_parallel(len(points)):
+            _contains_parallel(*args)
+        else:
+            _contains_2d(0, len(points), *args)
         return inside
 
     def robot(self, i: int) -> tuple[np.ndarray, np.ndarray]:
@@ -127,9 +131,17 @@ class Cells:
         return self.A[i, keep], self.b[i, keep]
 
 
+@numba.njit(cache=True, parallel=True)
+def _contains_parallel(A, b, points, tol, inside):
+    n, chunk = len(points), 16 * _CHUNK
+    for c in numba.prange((n + chunk - 1) // chunk):
+        _contains_2d(c * chunk, min(n, (c + 1) * chunk), A, b, points, tol, inside)
+
+
 @numba.njit(cache=True)
-def _contains_2d(A, b, points, tol, inside):
-    for i in range(len(points)):
+def _contains_2d(lo, hi, A, b, points, tol, inside):
+    """:meth:`Cells.contains` of robots ``lo … hi − 1`` in the plane."""
+    for i in range(lo, hi):
         inside[i] = True
         for k in range(A.shape[1]):
             if not A[i, k, 0] * points[i, 0] + A[i, k, 1] * points[i, 1] <= b[i, k] + tol:
@@ -278,7 +290,7 @@ def _by_owner(n: int, rows):
     return start, np.ascontiguousarray(rows[1], dtype=np.float64), np.ascontiguousarray(rows[2], dtype=np.float64), rows[4].astype(np.intp)
 
 
-_CHUNK = 64  # grid cells (or robots, × 4) per parallel task
+_CHUNK = 64  # grid cells (or robots, × 4 or × 16) per parallel task
 _NEAR = 16  # neighbours kept per robot by the gathering pass (more: a second, wider pass)
 
 

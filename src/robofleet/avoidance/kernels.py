@@ -1,7 +1,7 @@
 """Threads of the compiled avoidance kernels (cells, projection, ORCA, neighbour search),
 products of many short rows kept off OpenBLAS's threads (:func:`row_products`), and the
 per-thread buffers that large per-step arrays reuse (:func:`work_array`,
-:func:`reused_array`).
+:func:`reused_array`, of any size within :func:`run_buffers`).
 
 The kernels run robots in parallel with ``numba.prange`` when a fleet has at least
 :data:`PARALLEL_MIN_ROBOTS` robots (below that, starting the threads costs more than it
@@ -25,7 +25,9 @@ from __future__ import annotations
 import os
 import sys
 import threading
+from contextlib import contextmanager
 from math import prod
+from typing import Iterator
 
 import numba
 import numpy as np
@@ -81,22 +83,56 @@ def row_products(x: np.ndarray, matrix: np.ndarray) -> np.ndarray:
 
 
 KEEP_BYTES = 16 << 20
-"""Largest buffer :func:`work_array` and :func:`reused_array` keep (16 MiB, the cells of
-some 70,000 robots): larger arrays are allocated afresh, as a thread keeps its buffers
-after a run ends, and at that size a step's own work dwarfs its page faults."""
+"""Largest buffer :func:`work_array` and :func:`reused_array` keep outside
+:func:`run_buffers` (16 MiB, the cells of some 70,000 robots): larger arrays are allocated
+afresh, as a thread keeps its buffers after a run ends."""
 
 _WORK = threading.local()
+_KEPT = threading.local()
+_RUN = threading.local()
+
+
+def kept_bytes() -> float:
+    """Largest buffer the calling thread keeps now: :data:`KEEP_BYTES`, or any size within
+    :func:`run_buffers`."""
+    return float("inf") if getattr(_RUN, "depth", 0) else KEEP_BYTES
+
+
+@contextmanager
+def run_buffers() -> Iterator[None]:
+    """Within the block, :func:`work_array` and :func:`reused_array` keep the calling
+    thread's buffers of every size, so that the steps of one run reuse them however large
+    the fleet; on leaving the outermost block the buffers beyond :data:`KEEP_BYTES` are let
+    go (arrays made from them stay valid: they hold their buffer). A million robots'
+    cells and neighbour tables allocated afresh every step cost their page faults every
+    step (kernel time of both threads: ``benchmarks/million.py``)."""
+    _RUN.depth = getattr(_RUN, "depth", 0) + 1
+    try:
+        yield
+    finally:
+        _RUN.depth -= 1
+        if _RUN.depth == 0:
+            release_large_buffers()
+
+
+def release_large_buffers() -> None:
+    """Let go of the calling thread's kept buffers beyond :data:`KEEP_BYTES`."""
+    work = _WORK.__dict__
+    for key in [key for key, buffer in work.items() if buffer.nbytes > KEEP_BYTES]:
+        del work[key]
+    for kept in _KEPT.__dict__.values():
+        kept[:] = [buffer for buffer in kept if buffer.nbytes <= KEEP_BYTES]
 
 
 def work_array(key: str, shape: tuple[int, ...], dtype) -> np.ndarray:
     """A C-contiguous work array of ``shape`` for a temporary that does not outlive its
     call, kept per thread under ``key`` and reused by the next call with that key on the
     same thread (grown when too small; contents undefined; not kept beyond
-    :data:`KEEP_BYTES`). Arrays of a megabyte allocated afresh every step cost their page
-    faults every step (the allocator hands the freed pages back): at 10,000 robots the
-    cells' neighbour table alone took 160 faults."""
+    :data:`KEEP_BYTES` outside :func:`run_buffers`). Arrays of a megabyte allocated afresh
+    every step cost their page faults every step (the allocator hands the freed pages
+    back): at 10,000 robots the cells' neighbour table alone took 160 faults."""
     size, dtype = prod(shape), np.dtype(dtype)
-    if size * dtype.itemsize > KEEP_BYTES:
+    if size * dtype.itemsize > kept_bytes():
         return np.empty(shape, dtype)
     pool = _WORK.__dict__
     buffer = pool.get(key)
@@ -105,7 +141,6 @@ def work_array(key: str, shape: tuple[int, ...], dtype) -> np.ndarray:
     return buffer[:size].reshape(shape)
 
 
-_KEPT = threading.local()
 KEPT_PER_KEY = 2
 """Buffers :func:`reused_array` keeps per key and thread: this step's arrays and the last
 step's, which a caller still holds while it builds the next."""
@@ -115,12 +150,13 @@ def reused_array(key: str, shape: tuple[int, ...], dtype) -> np.ndarray:
     """A C-contiguous array of ``shape`` (contents undefined) to return to the caller,
     made from a buffer the calling thread kept under ``key`` that no array refers to any
     more, else from a new buffer that is then kept (at most :data:`KEPT_PER_KEY`, the
-    oldest let go; none beyond :data:`KEEP_BYTES`). An array made from a buffer refers to
-    it (numpy's ``base``), and so does every view of it, so a buffer is reused only once
-    every array made from it is gone; what a caller keeps is never overwritten. Saves the
-    page faults of allocating the cells' megabytes afresh every step (:func:`work_array`)."""
+    oldest let go; none beyond :data:`KEEP_BYTES` outside :func:`run_buffers`). An array
+    made from a buffer refers to it (numpy's ``base``), and so does every view of it, so a
+    buffer is reused only once every array made from it is gone; what a caller keeps is
+    never overwritten. Saves the page faults of allocating the cells' megabytes afresh
+    every step (:func:`work_array`)."""
     size, dtype = prod(shape), np.dtype(dtype)
-    if size * dtype.itemsize > KEEP_BYTES:
+    if size * dtype.itemsize > kept_bytes():
         return np.empty(shape, dtype)
     kept = _KEPT.__dict__.setdefault(key, [])
     for buffer in kept:

@@ -321,6 +321,14 @@ class World:
         z = rng.standard_normal((self.n, self.dim))
         return row_products(z, self.noise_factor.T) if self.noise_factor.ndim == 2 else np.einsum("nij,nj->ni", self.noise_factor, z)
 
+    def estimates(self, rng: np.random.Generator) -> np.ndarray:
+        """Position estimates ``(N, d)``: the TRUE positions plus one :meth:`position_noise`
+        draw, added into the draw (no third array of the fleet's size; ``x + y = y + x``
+        in floating point)."""
+        estimates = self.position_noise(rng)
+        estimates += self.positions()
+        return estimates
+
     def obstacle_shift(self, rng: np.random.Generator) -> np.ndarray:
         """Estimation errors ``(O, d)`` of the obstacles' positions, drawn from ``N(0, Σ_o)``."""
         return rng.standard_normal((self.n_obstacles, self.dim)) @ self.obstacle_factor.T
@@ -354,13 +362,13 @@ class World:
         return np.concatenate([g.has_arrived() for g in self.groups])
 
     def deadlock_counts(self) -> np.ndarray:
-        """Deadlock detections per robot so far."""
+        """Deadlock detections per robot so far (a new array, not updated by later steps)."""
         return np.concatenate([g.deadlock_counts() for g in self.groups])
 
     # -- deciding ---------------------------------------------------------------------------
     def decide(self, estimates: np.ndarray, obstacle_shift: np.ndarray) -> tuple[Cells | None, np.ndarray, StepFlags]:
         """Every robot's cell and input for this step: ``(cells, controls (N, width), flags)``."""
-        before = self.deadlock_counts().copy()
+        before = self.deadlock_counts()
         empty, reported = np.zeros(self.n, bool), np.ones(self.n, bool)
         if self.cell_model is None:
             cells, u = None, self.orca_control(estimates)

@@ -134,7 +134,7 @@ def turned_projection(estimates: np.ndarray, targets: np.ndarray, cells: Cells, 
     check_projection_inputs(targets, cells)
     n = len(targets)
     estimates = np.ascontiguousarray(estimates, dtype=np.float64)
-    point, empty, active, turn = np.empty((n, 2)), np.zeros(n, np.bool_), np.full((n, 2), -1, np.intp), np.empty(n, np.bool_)
+    point, empty, active, turn = np.empty((n, 2)), np.empty(n, np.bool_), np.empty((n, 2), np.intp), np.empty(n, np.bool_)  # every row written
     args = (np.ascontiguousarray(targets, dtype=np.float64), estimates, np.ascontiguousarray(cells.A), np.ascontiguousarray(cells.b),
             np.ascontiguousarray(cells.valid), np.ascontiguousarray(cells.kind), np.ascontiguousarray(driving, dtype=np.bool_),
             float(params.face_near), point, empty, active, turn)

@@ -39,6 +39,7 @@ import numba
 import numpy as np
 from scipy.spatial import cKDTree
 
+from ..kernels import use_parallel
 from .goal import row_distance
 from .params import YieldingParams
 from .progress import ParkedTest
@@ -62,17 +63,31 @@ class StillTracker:
     def observe(self, estimates: np.ndarray, radius: float, steps: int) -> np.ndarray:
         """Update with this step's estimates (in place, one compiled pass); return the still
         counts ``(N,)``."""
-        _still_pass(np.ascontiguousarray(estimates, dtype=np.float64), self.mean, self.still, 2.0 / steps, float(radius))
+        args = (np.ascontiguousarray(estimates, dtype=np.float64), self.mean, self.still, 2.0 / steps, float(radius))
+        if use_parallel(len(estimates)):
+            _still_parallel(*args)
+        else:
+            _still_pass(0, len(estimates), *args)
         return self.still
 
 
+_CHUNK = 1024  # robots per parallel task
+
+
+@numba.njit(cache=True, parallel=True)
+def _still_parallel(estimates, mean, still, rate, radius):
+    n = len(estimates)
+    for c in numba.prange((n + _CHUNK - 1) // _CHUNK):
+        _still_pass(c * _CHUNK, min(n, (c + 1) * _CHUNK), estimates, mean, still, rate, radius)
+
+
 @numba.njit(cache=True)
-def _still_pass(estimates, mean, still, rate, radius):
-    """:meth:`StillTracker.observe` for every robot, in place: a mean not yet set
+def _still_pass(lo, hi, estimates, mean, still, rate, radius):
+    """:meth:`StillTracker.observe` for robots ``lo … hi − 1``, in place: a mean not yet set
     (``mean[i, 0]`` not finite) starts at the estimate; ``m ← m + (p̂ − m) · rate``; the
     still count grows by one while ``‖p̂ − m‖ < radius`` and is 0 otherwise. Rounded as
     the numpy expressions of the rule (:func:`.goal.row_distance` for the norm)."""
-    for i in range(len(estimates)):
+    for i in range(lo, hi):
         fresh = not np.isfinite(mean[i, 0])
         for c in range(mean.shape[1]):
             if fresh:
