@@ -15,7 +15,9 @@ robot's path while its goal does not: the other robot waits for exactly that rep
 
 from __future__ import annotations
 
+import functools
 import heapq
+import math
 import threading
 import time
 from dataclasses import dataclass
@@ -39,28 +41,37 @@ def wandering_path(rng: np.random.Generator, start: np.ndarray, goal: np.ndarray
     """From ``start`` to ``goal`` through random legs around ``centre``: out and back to
     the very point left, out and back to within the tolerance of it, a detour closing on
     itself, a wait; each leg with its own step length (a fifth of the tolerance to 0.35)."""
-    points = [np.asarray(start, float)]
-    here = points[0]
+    here = np.asarray(start, float)
+    blocks = [here[None]]
 
     def walk(to):
         nonlocal here
         step = rng.uniform(0.2 * tolerance, 0.35)
-        count = max(1, int(np.ceil(np.linalg.norm(to - here) / step)))
-        points.extend(here + (to - here) * np.linspace(0, 1, count + 1)[1:, None])
+        leg = to - here
+        count = max(1, math.ceil(math.sqrt(leg.dot(leg)) / step))  # np.linalg.norm of a vector, without its overhead
+        blocks.append(here + leg * fractions(count))
         here = np.asarray(to, float)
 
     walk(centre + rng.uniform(-1, 1, 2))
     for kind in rng.choice(["back", "near", "detour", "wait"], int(rng.integers(1, 4))):
         origin = here + (tolerance * rng.uniform(-1, 1, 2) if kind == "near" else 0.0)
         if kind == "wait":
-            points.extend([here.copy()] * int(rng.integers(1, 8)))
+            blocks.append(np.repeat(here[None], int(rng.integers(1, 8)), axis=0))
             continue
         walk(centre + rng.uniform(-1.5, 1.5, 2))
         if kind == "detour":
             walk(centre + rng.uniform(-1.5, 1.5, 2))
         walk(origin)
     walk(np.asarray(goal, float))
-    return np.array(points)
+    return np.concatenate(blocks)
+
+
+@functools.lru_cache(maxsize=None)
+def fractions(count: int) -> np.ndarray:
+    """``(count, 1)`` the fractions ``1/count … 1`` of a leg (``np.linspace``'s values), read-only."""
+    values = np.linspace(0, 1, count + 1)[1:, None]
+    values.flags.writeable = False
+    return values
 
 
 def wandering_instance(rng: np.random.Generator, n_robots: int, tolerance: float, radius: float = 0.5,
@@ -120,15 +131,41 @@ def smallest_delays(paths, radius, rng, order=None, max_delay=600):
     ``2r`` from the robots placed before; ``None`` when some robot finds none."""
     placed, delayed = [], [None] * len(paths)
     for i in rng.permutation(len(paths)) if order is None else order:
-        for delay in range(0, max_delay):
-            candidate = np.vstack([np.repeat(paths[i][:1], delay, axis=0), paths[i]])
-            if all(_apart(candidate, other, 2 * radius) for other in placed):
-                break
-        else:
+        apart = np.ones(max_delay, bool)
+        for other in placed:
+            apart &= delays_apart(paths[i], other, 2 * radius, max_delay)
+        if not apart.any():
             return None
+        candidate = np.vstack([np.repeat(paths[i][:1], int(np.argmax(apart)), axis=0), paths[i]])
         placed.append(candidate)
         delayed[i] = candidate
     return delayed
+
+
+def delays_apart(path: np.ndarray, other: np.ndarray, reach: float, max_delay: int) -> np.ndarray:
+    """Per start delay ``d < max_delay``: whether ``path`` delayed by ``d`` steps stays
+    ``reach`` from ``other`` at every step (:func:`~coordination_instances._apart` of the
+    delayed path, each robot at its last point once its path ends) — all delays at once.
+
+    With ``close[a, b]`` (``path[a]`` and ``other[b]`` closer than ``reach``, the same
+    comparison as ``_apart``), the delayed robot at time ``t`` stands at
+    ``path[clip(t − d, 0, P − 1)]`` and the other at ``other[min(t, Q − 1)]``, for
+    ``t < max(P + d, Q)``: before it starts (``t < d``) row 0 against ``other[:min(d, Q)]``;
+    then the diagonal ``b − a = d`` and, once the other has stopped, the last column from
+    row ``max(0, Q − d)``; once it has stopped itself, the last row from ``P + d``."""
+    p, q = len(path), len(other)
+    close = np.linalg.norm(path[:, None] - other[None], axis=-1) < reach
+    d = np.arange(max_delay)
+    row0 = np.concatenate([[False], np.logical_or.accumulate(close[0])])  # any(close[0, :k])
+    last_col = np.append(np.logical_or.accumulate(close[::-1, -1])[::-1], False)  # any(close[k:, -1])
+    last_row = np.append(np.logical_or.accumulate(close[-1, ::-1])[::-1], False)  # any(close[-1, k:])
+    a, b = np.nonzero(close)
+    diagonal = np.zeros(max_delay, bool)
+    offset = b - a
+    diagonal[offset[(offset >= 0) & (offset < max_delay)]] = True
+    met = (row0[np.minimum(d, q)] | diagonal | last_col[np.minimum(np.maximum(0, q - d), p)]
+           | last_row[np.minimum(p + d, q)])
+    return ~met
 
 
 def executor_for(traj: Trajectories, method: str, probability: float | np.ndarray = 0.2) -> PlanExecutor:
@@ -328,7 +365,7 @@ def supervisor_deadlocked(sup: Supervisor) -> bool:
         if decision is None:
             state = sup.execution_state
             decision = Decision(*state.rule.states(state.labels, sup.known))
-        free = [i for i in np.flatnonzero(decision.moving).tolist() if sup.horizon(i) > sup.known[i]]
+        free = any(sup.horizon(i) > sup.known[i] for i in np.flatnonzero(decision.moving).tolist())
         return not free and not bool(decision.finished.all())
 
 

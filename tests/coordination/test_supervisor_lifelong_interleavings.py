@@ -84,7 +84,9 @@ class Interleaving:
         going back and forth: a stall no cycle shows), for the methods that flip an
         obstacle at most once (TFF, TFA, BTPG; ``optimal`` re-decides its open orders
         at every decision by design)."""
-        events = self.sup.events
+        events = self.sup.execution_state.events  # what ``sup.events`` copies (one thread here)
+        if len(events) == self.events_seen:
+            return
         once = self.sup.executor.variant.method is not Method.OPTIMAL
         for event in events[self.events_seen:]:
             if event["kind"] == "flip" and once:
