@@ -96,12 +96,20 @@ def wandering_instance(rng: np.random.Generator, n_robots: int, tolerance: float
         traj = make_trajectories(delayed, radius, 0.1)
         try:
             space = build_coordination_space(traj)
-            IncrementalCycleDetector(build_segment_layout(space), space.initial_labels)
+            layout = build_segment_layout(space)
+            IncrementalCycleDetector(layout, space.initial_labels)
         except InfeasibleError:
             continue
         if space.n_obstacles >= n_robots - 1:
+            BUILT.update(traj=traj, space=space, layout=layout)
             return traj
     raise RuntimeError("no wandering instance found")
+
+
+BUILT: dict = {}
+"""The last instance :func:`wandering_instance` returned (``traj``), with the coordination
+space and exact segment layout it built for it: :func:`executor_for` on that plan takes
+them instead of building them again (both are read-only)."""
 
 
 def crossing_instance(rng: np.random.Generator, pairs: int = 1, radius: float = 0.5, speed: float = 0.3) -> Trajectories:
@@ -170,10 +178,13 @@ def delays_apart(path: np.ndarray, other: np.ndarray, reach: float, max_delay: i
 
 def executor_for(traj: Trajectories, method: str, probability: float | np.ndarray = 0.2) -> PlanExecutor:
     """A checked RMTRACK / RMTRACK+TFF / RMTRACK+TFA executor on the plan."""
-    space = build_coordination_space(traj)
+    if BUILT.get("traj") is traj:
+        space, layout = BUILT["space"], BUILT["layout"]
+    else:
+        space, layout = build_coordination_space(traj), None
     p = np.broadcast_to(probability, traj.positions.shape[:2]).astype(float)
     assert first_plan_collision(traj) is None
-    return PlanExecutor(traj, space, Variant(Method(method), True), KnownProbabilities(p, traj.dt), p)
+    return PlanExecutor(traj, space, Variant(Method(method), True), KnownProbabilities(p, traj.dt), p, layout=layout)
 
 
 # -- position reports ---------------------------------------------------------------------------------
@@ -200,8 +211,15 @@ def error_in_disc(rng: np.random.Generator, tolerance: float, toward: np.ndarray
 def contacts_at(traj: Trajectories, x: np.ndarray) -> int:
     """Pairs of robots closer than ``2r`` at their plan steps ``x`` (in one collision region)."""
     pos = traj.at(x)
-    gap = np.linalg.norm(pos[:, None] - pos[None], axis=-1)
-    return int(np.count_nonzero(np.triu(gap < 2 * traj.radius, k=1)))
+    i, j = pairs_of(len(pos))
+    gap = np.linalg.norm(pos[i] - pos[j], axis=-1)
+    return int(np.count_nonzero(gap < 2 * traj.radius))
+
+
+@functools.lru_cache(maxsize=None)
+def pairs_of(n: int) -> tuple[np.ndarray, np.ndarray]:
+    """The pairs ``i < j`` of ``n`` robots (``np.triu_indices``)."""
+    return np.triu_indices(n, 1)
 
 
 def position_loop(executor: PlanExecutor, seed: int, tolerance: float, lookahead: int | None,

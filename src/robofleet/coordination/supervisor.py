@@ -166,7 +166,8 @@ Lifelong plans
     for the plan it was made on, so every later first-come flip goes through the cycle
     test) and ``optimal`` (its decisions restart on the new plan with this cycle test).
 
-    Costs and limits: rebuilding is that of the whole plan's coordination space and its
+    Costs and limits: rebuilding is that of the whole plan's coordination space (distances
+    for the pairs with the changed robot only: the other pairs' cells carry over) and its
     segment graph, plus a dense ``K_i × K_j`` grid for each pair with the changed robot;
     appends need known disturbance probabilities (the new steps take the goal's); an
     appended path that ends on another robot's remaining path, or passes a robot parked
@@ -205,7 +206,7 @@ from ..core.config import ScenarioSource, load_spec
 from ..core.errors import ConfigError, InfeasibleError, short_repr
 from ..core.geometry import point_segment_distance
 from ..core.rng import resolve_seed
-from .coordination_space import CoordinationSpace, build_coordination_space
+from .coordination_space import CoordinationSpace, build_coordination_space, pair_cells, space_of_cells
 from .instance import prepare_instance
 from .label_flipping import KnownProbabilities
 from .plan_execution import Decision, ExecutionState, Method, PlanExecutor, Variant
@@ -319,6 +320,7 @@ class Supervisor:
         self._entries = ProfileEntries.of(self.space)
         self._first_sides = 2 * np.arange(self.space.n_obstacles)
         self.standing = np.zeros(n, np.intp)
+        self._cells: dict[tuple[int, int], np.ndarray] | None = None
 
     # -- construction ---------------------------------------------------------------------------
     @classmethod
@@ -539,7 +541,9 @@ class Supervisor:
         choose the passing orders the change leaves open, then switch to it all (nothing
         changes when a check refuses; see *Lifelong plans* in the module docstring)."""
         traj = Trajectories(positions, lengths, self.traj.radius, self.traj.dt)
-        space = build_coordination_space(traj, check_plan=False)
+        cells = {pair: c for pair, c in self._plan_cells().items() if i not in pair}  # the others' plans are as they were
+        cells.update(pair_cells(traj, robot=i))
+        space = space_of_cells(traj, cells, check_plan=False)
         labels, tried, changed = carried_labels(self.traj, self.space, self.execution_state, traj, space, i)
         layout = build_segment_layout(space, Resolution.EXACT)
         try:
@@ -559,7 +563,15 @@ class Supervisor:
                                                    detector=flip_detector(executor, detector), orders=orders)
         self._entries = ProfileEntries.of(space)
         self._first_sides = 2 * np.arange(space.n_obstacles)
+        self._cells = cells
         self._decision = None
+
+    def _plan_cells(self) -> dict[tuple[int, int], np.ndarray]:
+        """The cells of every pair of the current plan (:func:`~.coordination_space.pair_cells`;
+        computed at the first change, then carried from change to change)."""
+        if self._cells is None:
+            self._cells = pair_cells(self.traj)
+        return self._cells
 
     def _settle_orders(self, i: int, space: CoordinationSpace, labels: np.ndarray, regions: np.ndarray,
                        detector: IncrementalCycleDetector, what: str) -> None:
