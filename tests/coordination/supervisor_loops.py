@@ -37,33 +37,86 @@ from robofleet.core.geometry import point_segment_distance
 
 # -- plans ------------------------------------------------------------------------------------------
 def wandering_path(rng: np.random.Generator, start: np.ndarray, goal: np.ndarray, centre: np.ndarray,
-                   tolerance: float) -> np.ndarray:
+                   tolerance: float) -> Legs:
     """From ``start`` to ``goal`` through random legs around ``centre``: out and back to
     the very point left, out and back to within the tolerance of it, a detour closing on
-    itself, a wait; each leg with its own step length (a fifth of the tolerance to 0.35)."""
-    here = np.asarray(start, float)
-    blocks = [here[None]]
+    itself, a wait; each leg with its own step length (a fifth of the tolerance to 0.35).
+    Its legs, every random draw made: :meth:`Legs.points` lays its points."""
+    legs = Legs(np.asarray(start, float), [])
+    here = legs.start
 
     def walk(to):
         nonlocal here
-        step = rng.uniform(0.2 * tolerance, 0.35)
-        leg = to - here
-        count = max(1, math.ceil(math.sqrt(leg.dot(leg)) / step))  # np.linalg.norm of a vector, without its overhead
-        blocks.append(here + leg * fractions(count))
         here = np.asarray(to, float)
+        legs.legs.append((here, rng.uniform(0.2 * tolerance, 0.35)))
 
     walk(centre + rng.uniform(-1, 1, 2))
     for kind in rng.choice(["back", "near", "detour", "wait"], int(rng.integers(1, 4))):
         origin = here + (tolerance * rng.uniform(-1, 1, 2) if kind == "near" else 0.0)
         if kind == "wait":
-            blocks.append(np.repeat(here[None], int(rng.integers(1, 8)), axis=0))
+            legs.legs.append((None, int(rng.integers(1, 8))))
             continue
         walk(centre + rng.uniform(-1.5, 1.5, 2))
         if kind == "detour":
             walk(centre + rng.uniform(-1.5, 1.5, 2))
         walk(origin)
     walk(np.asarray(goal, float))
-    return np.concatenate(blocks)
+    return legs
+
+
+@dataclass
+class Legs:
+    """A path as its ``start`` and ``legs``: per leg the point ``to`` it goes to (from where
+    the one before ended) and its step length, or a wait (``to`` ``None``, then the steps
+    waited)."""
+
+    start: np.ndarray
+    legs: list
+
+    def points(self) -> np.ndarray:
+        """The path's points: each leg in steps of at most its step length (the last one at
+        ``here + (to − here) · 1``), each wait repeating the point it waits at."""
+        here = self.start
+        blocks = [here[None]]
+        for to, step in self.legs:
+            if to is None:
+                blocks.append(np.repeat(here[None], step, axis=0))
+                continue
+            leg = to - here
+            count = max(1, math.ceil(math.sqrt(leg.dot(leg)) / step))  # np.linalg.norm of a vector, without its overhead
+            blocks.append(here + leg * fractions(count))
+            here = to
+        return np.concatenate(blocks)
+
+    def corners(self) -> np.ndarray:
+        """``(c, 2)`` the start and the point each leg goes to: every point of the path lies on
+        the polyline through them, up to the rounding of a leg's points (a few ulps)."""
+        return np.array([self.start] + [to for to, _ in self.legs if to is not None])
+
+    def ends(self) -> np.ndarray:
+        """``(2, 2)`` the path's first and last points, as :meth:`points` lays them."""
+        corners = self.corners()
+        return np.array([self.start, corners[-2] + (corners[-1] - corners[-2]) * 1.0])
+
+
+ROUNDING_MARGIN = 1e-9
+"""Far more than the distance between a path's points and its corners' polyline (a few
+ulps of coordinates below 10) plus the rounding of :func:`point_segment_distance`."""
+
+
+def ends_surely_near_others(plans: list[Legs], clearance: float) -> bool:
+    """Some start or goal is closer than ``clearance`` to another robot's path, as
+    :func:`ends_clear_of_others` finds on the laid points, decided on the legs' corners:
+    closer than ``clearance − ROUNDING_MARGIN`` to another path's corner polyline, it is
+    closer than ``clearance`` to that path's segments (each corner segment is covered by
+    the segments between its laid points to a few ulps). ``False``: not sure."""
+    ends = [plan.ends() for plan in plans]
+    corners = [plan.corners() for plan in plans]
+    for i in range(len(plans)):
+        for j, other in enumerate(corners):
+            if i != j and point_segment_distance(ends[i], other[:-1], other[1:]).min() < clearance - ROUNDING_MARGIN:
+                return True
+    return False
 
 
 @functools.lru_cache(maxsize=None)
@@ -87,7 +140,10 @@ def wandering_instance(rng: np.random.Generator, n_robots: int, tolerance: float
         goal_angle = angle + np.pi + rng.uniform(-0.8, 0.8, n_robots)
         ring = lambda a: 4.5 * np.column_stack([np.cos(a), np.sin(a)])  # noqa: E731
         starts, goals = ring(angle), ring(goal_angle)
-        paths = [wandering_path(rng, starts[i], goals[i], np.zeros(2), tolerance) for i in range(n_robots)]
+        plans = [wandering_path(rng, starts[i], goals[i], np.zeros(2), tolerance) for i in range(n_robots)]
+        if ends_surely_near_others(plans, 2.1 * radius):  # most tries: no need to lay their points
+            continue
+        paths = [plan.points() for plan in plans]
         if not ends_clear_of_others(paths, 2.1 * radius):
             continue
         delayed = smallest_delays(paths, radius, rng)
