@@ -373,7 +373,7 @@ class World:
                 self.x[i] += 1
                 self.contacts += contacts_at(self.traj, self.x)
             self.quiet.count(i, moved)
-            finished = bool(np.all(self.x >= self.traj.lengths))
+            finished = bool((self.x >= self.traj.lengths).all())
             self.stalled = self.stalled or self.quiet.stalled(self.sup, finished)
             self.over = self.over or self.stalled or finished
 

@@ -58,7 +58,7 @@ class CycleWatch:
         labels, known = sup.execution_state.labels, sup.known
         if sup.space is not self.space:
             self.space, self.layout, self.labels = sup.space, build_segment_layout(sup.space), None
-        elif self.labels is not None and np.array_equal(labels, self.labels) and np.all(known >= self.known):
+        elif self.labels is not None and np.array_equal(labels, self.labels) and (known >= self.known).all():
             self.known = known.copy()
             return
         self.labels, self.known = labels.copy(), known.copy()
@@ -144,7 +144,7 @@ def lifelong_loop(seed: int, method: str, n: int = 4, appends: int = 6, max_dela
         counts["overestimates"] += int(np.count_nonzero(sup.known > x))
         watch.check(sup)
         counts["cycles"] = watch.cycles
-        if left == 0 and np.all(x >= sup.traj.lengths):
+        if left == 0 and (x >= sup.traj.lengths).all():
             return counts
     counts["stalled"] = True
     return counts

@@ -198,7 +198,7 @@ class Interleaving:
             for event, i in self.events():
                 event() if i is None else event(i)
             self.deliver()
-            over = bool(np.all(self.x >= self.sup.traj.lengths))
+            over = bool((self.x >= self.sup.traj.lengths).all())
             if over and self.appends_left == 0 and self.cuts_left == 0:
                 break
             quiet = 0 if self.moved or over else quiet + 1

@@ -355,7 +355,7 @@ class Supervisor:
         robot.
         """
         i = self.robot_index(robot)
-        holding = arguments.flag(holding, "holding")
+        holding = holding if type(holding) is bool else arguments.flag(holding, "holding")
         if (progress is None) == (position is None):
             raise ConfigError(f"report: expected exactly one of progress= or position=, received progress={progress!r}, position={short_repr(position)}")
         if progress is not None:
@@ -374,13 +374,17 @@ class Supervisor:
         return known
 
     def robot_index(self, robot: object) -> int:
-        n = self.traj.n_robots
+        n = len(self.known)
+        if type(robot) is int and 0 <= robot < n:  # the common case first
+            return robot
         if isinstance(robot, bool) or not isinstance(robot, (int, np.integer)) or not 0 <= robot < n:
             raise ConfigError(f"robot: expected an index in 0..{n - 1}, received {short_repr(robot)}")
         return int(robot)
 
     def checked_step(self, i: int, progress: object) -> int:
         k = int(self.traj.lengths[i])
+        if type(progress) is int and 0 <= progress <= k:  # the common case first
+            return progress
         if isinstance(progress, bool) or not isinstance(progress, (int, np.integer)) or not 0 <= progress <= k:
             raise ConfigError(f"progress: expected robot {i}'s plan step, an integer in 0..{k}, received {short_repr(progress)}")
         return int(progress)
