@@ -110,13 +110,12 @@ def ends_surely_near_others(plans: list[Legs], clearance: float) -> bool:
     closer than ``clearance − ROUNDING_MARGIN`` to another path's corner polyline, it is
     closer than ``clearance`` to that path's segments (each corner segment is covered by
     the segments between its laid points to a few ulps). ``False``: not sure."""
-    ends = [plan.ends() for plan in plans]
+    ends = np.concatenate([plan.ends() for plan in plans])  # robot i's at rows 2i, 2i + 1
     corners = [plan.corners() for plan in plans]
-    for i in range(len(plans)):
-        for j, other in enumerate(corners):
-            if i != j and point_segment_distance(ends[i], other[:-1], other[1:]).min() < clearance - ROUNDING_MARGIN:
-                return True
-    return False
+    owner = np.concatenate([np.full(len(c) - 1, j) for j, c in enumerate(corners)])
+    distance = point_segment_distance(ends, np.concatenate([c[:-1] for c in corners]), np.concatenate([c[1:] for c in corners]))
+    others = owner[None, :] != np.arange(len(ends))[:, None] // 2
+    return bool(np.any((distance < clearance - ROUNDING_MARGIN) & others))
 
 
 @functools.lru_cache(maxsize=None)
