@@ -23,7 +23,7 @@ import time
 from dataclasses import dataclass
 
 import numpy as np
-from coordination_instances import _apart, line
+from coordination_instances import line
 
 from robofleet.coordination import Supervisor
 from robofleet.coordination.coordination_space import build_coordination_space
