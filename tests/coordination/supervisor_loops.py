@@ -15,13 +15,15 @@ robot's path while its goal does not: the other robot waits for exactly that rep
 
 from __future__ import annotations
 
+import functools
 import heapq
+import math
 import threading
 import time
 from dataclasses import dataclass
 
 import numpy as np
-from coordination_instances import _apart, line
+from coordination_instances import line
 
 from robofleet.coordination import Supervisor
 from robofleet.coordination.coordination_space import build_coordination_space
@@ -35,32 +37,93 @@ from robofleet.core.geometry import point_segment_distance
 
 # -- plans ------------------------------------------------------------------------------------------
 def wandering_path(rng: np.random.Generator, start: np.ndarray, goal: np.ndarray, centre: np.ndarray,
-                   tolerance: float) -> np.ndarray:
+                   tolerance: float) -> Legs:
     """From ``start`` to ``goal`` through random legs around ``centre``: out and back to
     the very point left, out and back to within the tolerance of it, a detour closing on
-    itself, a wait; each leg with its own step length (a fifth of the tolerance to 0.35)."""
-    points = [np.asarray(start, float)]
-    here = points[0]
+    itself, a wait; each leg with its own step length (a fifth of the tolerance to 0.35).
+    Its legs, every random draw made: :meth:`Legs.points` lays its points."""
+    legs = Legs(np.asarray(start, float), [])
+    here = legs.start
 
     def walk(to):
         nonlocal here
-        step = rng.uniform(0.2 * tolerance, 0.35)
-        count = max(1, int(np.ceil(np.linalg.norm(to - here) / step)))
-        points.extend(here + (to - here) * np.linspace(0, 1, count + 1)[1:, None])
         here = np.asarray(to, float)
+        legs.legs.append((here, rng.uniform(0.2 * tolerance, 0.35)))
 
     walk(centre + rng.uniform(-1, 1, 2))
     for kind in rng.choice(["back", "near", "detour", "wait"], int(rng.integers(1, 4))):
         origin = here + (tolerance * rng.uniform(-1, 1, 2) if kind == "near" else 0.0)
         if kind == "wait":
-            points.extend([here.copy()] * int(rng.integers(1, 8)))
+            legs.legs.append((None, int(rng.integers(1, 8))))
             continue
         walk(centre + rng.uniform(-1.5, 1.5, 2))
         if kind == "detour":
             walk(centre + rng.uniform(-1.5, 1.5, 2))
         walk(origin)
     walk(np.asarray(goal, float))
-    return np.array(points)
+    return legs
+
+
+@dataclass
+class Legs:
+    """A path as its ``start`` and ``legs``: per leg the point ``to`` it goes to (from where
+    the one before ended) and its step length, or a wait (``to`` ``None``, then the steps
+    waited)."""
+
+    start: np.ndarray
+    legs: list
+
+    def points(self) -> np.ndarray:
+        """The path's points: each leg in steps of at most its step length (the last one at
+        ``here + (to − here) · 1``), each wait repeating the point it waits at."""
+        here = self.start
+        blocks = [here[None]]
+        for to, step in self.legs:
+            if to is None:
+                blocks.append(np.repeat(here[None], step, axis=0))
+                continue
+            leg = to - here
+            count = max(1, math.ceil(math.sqrt(leg.dot(leg)) / step))  # np.linalg.norm of a vector, without its overhead
+            blocks.append(here + leg * fractions(count))
+            here = to
+        return np.concatenate(blocks)
+
+    def corners(self) -> np.ndarray:
+        """``(c, 2)`` the start and the point each leg goes to: every point of the path lies on
+        the polyline through them, up to the rounding of a leg's points (a few ulps)."""
+        return np.array([self.start] + [to for to, _ in self.legs if to is not None])
+
+    def ends(self) -> np.ndarray:
+        """``(2, 2)`` the path's first and last points, as :meth:`points` lays them."""
+        corners = self.corners()
+        return np.array([self.start, corners[-2] + (corners[-1] - corners[-2]) * 1.0])
+
+
+ROUNDING_MARGIN = 1e-9
+"""Far more than the distance between a path's points and its corners' polyline (a few
+ulps of coordinates below 10) plus the rounding of :func:`point_segment_distance`."""
+
+
+def ends_surely_near_others(plans: list[Legs], clearance: float) -> bool:
+    """Some start or goal is closer than ``clearance`` to another robot's path, as
+    :func:`ends_clear_of_others` finds on the laid points, decided on the legs' corners:
+    closer than ``clearance − ROUNDING_MARGIN`` to another path's corner polyline, it is
+    closer than ``clearance`` to that path's segments (each corner segment is covered by
+    the segments between its laid points to a few ulps). ``False``: not sure."""
+    ends = np.concatenate([plan.ends() for plan in plans])  # robot i's at rows 2i, 2i + 1
+    corners = [plan.corners() for plan in plans]
+    owner = np.concatenate([np.full(len(c) - 1, j) for j, c in enumerate(corners)])
+    distance = point_segment_distance(ends, np.concatenate([c[:-1] for c in corners]), np.concatenate([c[1:] for c in corners]))
+    others = owner[None, :] != np.arange(len(ends))[:, None] // 2
+    return bool(np.any((distance < clearance - ROUNDING_MARGIN) & others))
+
+
+@functools.lru_cache(maxsize=None)
+def fractions(count: int) -> np.ndarray:
+    """``(count, 1)`` the fractions ``1/count … 1`` of a leg (``np.linspace``'s values), read-only."""
+    values = np.linspace(0, 1, count + 1)[1:, None]
+    values.flags.writeable = False
+    return values
 
 
 def wandering_instance(rng: np.random.Generator, n_robots: int, tolerance: float, radius: float = 0.5,
@@ -76,7 +139,10 @@ def wandering_instance(rng: np.random.Generator, n_robots: int, tolerance: float
         goal_angle = angle + np.pi + rng.uniform(-0.8, 0.8, n_robots)
         ring = lambda a: 4.5 * np.column_stack([np.cos(a), np.sin(a)])  # noqa: E731
         starts, goals = ring(angle), ring(goal_angle)
-        paths = [wandering_path(rng, starts[i], goals[i], np.zeros(2), tolerance) for i in range(n_robots)]
+        plans = [wandering_path(rng, starts[i], goals[i], np.zeros(2), tolerance) for i in range(n_robots)]
+        if ends_surely_near_others(plans, 2.1 * radius):  # most tries: no need to lay their points
+            continue
+        paths = [plan.points() for plan in plans]
         if not ends_clear_of_others(paths, 2.1 * radius):
             continue
         delayed = smallest_delays(paths, radius, rng)
@@ -85,12 +151,20 @@ def wandering_instance(rng: np.random.Generator, n_robots: int, tolerance: float
         traj = make_trajectories(delayed, radius, 0.1)
         try:
             space = build_coordination_space(traj)
-            IncrementalCycleDetector(build_segment_layout(space), space.initial_labels)
+            layout = build_segment_layout(space)
+            IncrementalCycleDetector(layout, space.initial_labels)
         except InfeasibleError:
             continue
         if space.n_obstacles >= n_robots - 1:
+            BUILT.update(traj=traj, space=space, layout=layout)
             return traj
     raise RuntimeError("no wandering instance found")
+
+
+BUILT: dict = {}
+"""The last instance :func:`wandering_instance` returned (``traj``), with the coordination
+space and exact segment layout it built for it: :func:`executor_for` on that plan takes
+them instead of building them again (both are read-only)."""
 
 
 def crossing_instance(rng: np.random.Generator, pairs: int = 1, radius: float = 0.5, speed: float = 0.3) -> Trajectories:
@@ -120,23 +194,52 @@ def smallest_delays(paths, radius, rng, order=None, max_delay=600):
     ``2r`` from the robots placed before; ``None`` when some robot finds none."""
     placed, delayed = [], [None] * len(paths)
     for i in rng.permutation(len(paths)) if order is None else order:
-        for delay in range(0, max_delay):
-            candidate = np.vstack([np.repeat(paths[i][:1], delay, axis=0), paths[i]])
-            if all(_apart(candidate, other, 2 * radius) for other in placed):
-                break
-        else:
+        apart = np.ones(max_delay, bool)
+        for other in placed:
+            apart &= delays_apart(paths[i], other, 2 * radius, max_delay)
+        if not apart.any():
             return None
+        candidate = np.vstack([np.repeat(paths[i][:1], int(np.argmax(apart)), axis=0), paths[i]])
         placed.append(candidate)
         delayed[i] = candidate
     return delayed
 
 
+def delays_apart(path: np.ndarray, other: np.ndarray, reach: float, max_delay: int) -> np.ndarray:
+    """Per start delay ``d < max_delay``: whether ``path`` delayed by ``d`` steps stays
+    ``reach`` from ``other`` at every step (:func:`~coordination_instances._apart` of the
+    delayed path, each robot at its last point once its path ends) — all delays at once.
+
+    With ``close[a, b]`` (``path[a]`` and ``other[b]`` closer than ``reach``, the same
+    comparison as ``_apart``), the delayed robot at time ``t`` stands at
+    ``path[clip(t − d, 0, P − 1)]`` and the other at ``other[min(t, Q − 1)]``, for
+    ``t < max(P + d, Q)``: before it starts (``t < d``) row 0 against ``other[:min(d, Q)]``;
+    then the diagonal ``b − a = d`` and, once the other has stopped, the last column from
+    row ``max(0, Q − d)``; once it has stopped itself, the last row from ``P + d``."""
+    p, q = len(path), len(other)
+    close = np.linalg.norm(path[:, None] - other[None], axis=-1) < reach
+    d = np.arange(max_delay)
+    row0 = np.concatenate([[False], np.logical_or.accumulate(close[0])])  # any(close[0, :k])
+    last_col = np.append(np.logical_or.accumulate(close[::-1, -1])[::-1], False)  # any(close[k:, -1])
+    last_row = np.append(np.logical_or.accumulate(close[-1, ::-1])[::-1], False)  # any(close[-1, k:])
+    a, b = np.nonzero(close)
+    diagonal = np.zeros(max_delay, bool)
+    offset = b - a
+    diagonal[offset[(offset >= 0) & (offset < max_delay)]] = True
+    met = (row0[np.minimum(d, q)] | diagonal | last_col[np.minimum(np.maximum(0, q - d), p)]
+           | last_row[np.minimum(p + d, q)])
+    return ~met
+
+
 def executor_for(traj: Trajectories, method: str, probability: float | np.ndarray = 0.2) -> PlanExecutor:
     """A checked RMTRACK / RMTRACK+TFF / RMTRACK+TFA executor on the plan."""
-    space = build_coordination_space(traj)
+    if BUILT.get("traj") is traj:
+        space, layout = BUILT["space"], BUILT["layout"]
+    else:
+        space, layout = build_coordination_space(traj), None
     p = np.broadcast_to(probability, traj.positions.shape[:2]).astype(float)
     assert first_plan_collision(traj) is None
-    return PlanExecutor(traj, space, Variant(Method(method), True), KnownProbabilities(p, traj.dt), p)
+    return PlanExecutor(traj, space, Variant(Method(method), True), KnownProbabilities(p, traj.dt), p, layout=layout)
 
 
 # -- position reports ---------------------------------------------------------------------------------
@@ -163,8 +266,15 @@ def error_in_disc(rng: np.random.Generator, tolerance: float, toward: np.ndarray
 def contacts_at(traj: Trajectories, x: np.ndarray) -> int:
     """Pairs of robots closer than ``2r`` at their plan steps ``x`` (in one collision region)."""
     pos = traj.at(x)
-    gap = np.linalg.norm(pos[:, None] - pos[None], axis=-1)
-    return int(np.count_nonzero(np.triu(gap < 2 * traj.radius, k=1)))
+    i, j = pairs_of(len(pos))
+    gap = np.linalg.norm(pos[i] - pos[j], axis=-1)
+    return int(np.count_nonzero(gap < 2 * traj.radius))
+
+
+@functools.lru_cache(maxsize=None)
+def pairs_of(n: int) -> tuple[np.ndarray, np.ndarray]:
+    """The pairs ``i < j`` of ``n`` robots (``np.triu_indices``)."""
+    return np.triu_indices(n, 1)
 
 
 def position_loop(executor: PlanExecutor, seed: int, tolerance: float, lookahead: int | None,
@@ -262,7 +372,7 @@ class World:
                 self.x[i] += 1
                 self.contacts += contacts_at(self.traj, self.x)
             self.quiet.count(i, moved)
-            finished = bool(np.all(self.x >= self.traj.lengths))
+            finished = bool((self.x >= self.traj.lengths).all())
             self.stalled = self.stalled or self.quiet.stalled(self.sup, finished)
             self.over = self.over or self.stalled or finished
 
@@ -328,7 +438,7 @@ def supervisor_deadlocked(sup: Supervisor) -> bool:
         if decision is None:
             state = sup.execution_state
             decision = Decision(*state.rule.states(state.labels, sup.known))
-        free = [i for i in np.flatnonzero(decision.moving).tolist() if sup.horizon(i) > sup.known[i]]
+        free = any(sup.horizon(i) > sup.known[i] for i in np.flatnonzero(decision.moving).tolist())
         return not free and not bool(decision.finished.all())
 
 

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -10,13 +12,13 @@ from scipy import ndimage
 
 from coordination_instances import line, random_instance
 from robofleet.core.errors import InfeasibleError
-from robofleet.coordination.coordination_space import build_coordination_space, obstacle_grid
+from robofleet.coordination.coordination_space import build_coordination_space, obstacle_grid, pair_cells, space_of_cells
 from robofleet.coordination.label_flipping import (
     FlipContext, KnownProbabilities, LearnedProbabilities, flip_eligible, pair_rollout, tfa_wants_flip, tff_wants_flip,
 )
 from robofleet.coordination.rmtrack import ActionRule
 from robofleet.coordination.segment_graph import Resolution, build_segment_layout, has_cycle_full
-from robofleet.coordination.trajectories import make_trajectories
+from robofleet.coordination.trajectories import Trajectories, make_trajectories
 
 SEEDS = st.integers(0, 2**32 - 1)
 
@@ -191,3 +193,31 @@ def test_definition3_graph_is_coarser_than_exact():
             x = np.zeros(traj.n_robots, int)
             if has_cycle_full(exact, labels, x):
                 assert has_cycle_full(coarse, labels, x)
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_a_space_from_carried_pair_cells_is_the_full_build(seed):
+    """After one robot's plan is cut or extended, the other pairs' cells carried over with
+    that robot's pairs recomputed give exactly the space of a full build (what a
+    supervisor's plan change relies on)."""
+    rng = np.random.default_rng(seed)
+    traj, _, _ = random_instance(rng, 4, ring=True)
+    cells = pair_cells(traj)
+    i = int(rng.integers(traj.n_robots))
+    positions, lengths = traj.positions.copy(), traj.lengths.copy()
+    if seed % 2:  # cut: the robot parks at a step of its plan
+        step = int(rng.integers(0, lengths[i] + 1))
+        positions[i, step + 1:], lengths[i] = positions[i, step], step
+    else:  # extended: the robot walks its path back to its start, through the others' paths
+        back, goal = positions[i, lengths[i] - 1::-1], lengths[i]
+        positions = np.concatenate([positions, np.repeat(positions[:, -1:], len(back), axis=1)], axis=1)
+        positions[i, goal + 1: goal + 1 + len(back)] = back
+        positions[i, goal + 1 + len(back):] = back[-1]
+        lengths[i] += len(back)
+    changed = Trajectories(positions, lengths, traj.radius, traj.dt)
+    carried = {pair: c for pair, c in cells.items() if i not in pair}
+    carried.update(pair_cells(changed, robot=i))
+    full = build_coordination_space(changed, check_plan=False)
+    built = space_of_cells(changed, carried, check_plan=False)
+    for name in [f.name for f in dataclasses.fields(full)]:
+        assert np.array_equal(getattr(built, name), getattr(full, name)), name

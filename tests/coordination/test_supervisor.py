@@ -14,6 +14,7 @@ from coordination_instances import fig2_example, line, random_instance
 
 import robofleet
 from robofleet.coordination import Supervisor
+from robofleet.coordination import supervisor as supervisor_module
 from robofleet.coordination.coordination_space import build_coordination_space
 from robofleet.coordination.label_flipping import KnownProbabilities
 from robofleet.coordination.plan_execution import Method, PlanExecutor, Variant
@@ -285,3 +286,29 @@ def test_bad_input_is_a_one_line_error_naming_the_argument(call, where):
         call(sup)
     message = str(info.value)
     assert message.startswith(where + ": expected ") and ", received " in message and "\n" not in message
+
+
+@pytest.mark.parametrize("lookahead", [1, 3, None])
+def test_the_horizon_scanned_in_python_is_the_vectorized_one(lookahead, monkeypatch):
+    """Closed loop on a crowded plan with flips: at every answer, the horizon of every robot
+    from the plain-Python scan of its window equals the vectorized one."""
+    traj, space, layout = random_instance(np.random.default_rng(3), 5, ring=True)
+    sup = Supervisor(traj, method="tfa", lookahead=lookahead, probability=0.3)
+    rng = np.random.default_rng(4)
+    x, checked = np.zeros(traj.n_robots, np.intp), 0
+    for _ in range(400):
+        for i in rng.permutation(traj.n_robots).tolist():
+            sup.report(i, progress=int(x[i]), holding=True)
+            answer = sup.answer(i)
+            for j in range(traj.n_robots):
+                scanned = sup.horizon(j)
+                monkeypatch.setattr(supervisor_module, "SCAN_ROWS", -1)  # every window vectorized
+                assert sup.horizon(j) == scanned
+                monkeypatch.setattr(supervisor_module, "SCAN_ROWS", 1 << 30)  # every window scanned
+                assert sup.horizon(j) == scanned
+                monkeypatch.undo()
+                checked += 1
+            x[i] = min(answer.until, x[i] + int(rng.random() < 0.7))
+        if np.all(x >= traj.lengths):
+            break
+    assert np.all(x >= traj.lengths) and checked > 1000

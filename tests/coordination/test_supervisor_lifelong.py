@@ -15,8 +15,8 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
-from coordination_instances import fig2_example, line
-from supervisor_loops import contacts_at, error_in_disc, executor_for, wandering_instance
+from coordination_instances import _apart, fig2_example, line
+from supervisor_loops import contacts_at, delays_apart, error_in_disc, executor_for, wandering_instance
 
 from robofleet.coordination import Supervisor
 from robofleet.coordination.coordination_space import build_coordination_space
@@ -58,7 +58,7 @@ class CycleWatch:
         labels, known = sup.execution_state.labels, sup.known
         if sup.space is not self.space:
             self.space, self.layout, self.labels = sup.space, build_segment_layout(sup.space), None
-        elif self.labels is not None and np.array_equal(labels, self.labels) and np.all(known >= self.known):
+        elif self.labels is not None and np.array_equal(labels, self.labels) and (known >= self.known).all():
             self.known = known.copy()
             return
         self.labels, self.known = labels.copy(), known.copy()
@@ -144,7 +144,7 @@ def lifelong_loop(seed: int, method: str, n: int = 4, appends: int = 6, max_dela
         counts["overestimates"] += int(np.count_nonzero(sup.known > x))
         watch.check(sup)
         counts["cycles"] = watch.cycles
-        if left == 0 and np.all(x >= sup.traj.lengths):
+        if left == 0 and (x >= sup.traj.lengths).all():
             return counts
     counts["stalled"] = True
     return counts
@@ -287,3 +287,14 @@ def test_a_cut_whose_only_order_closes_a_cycle_is_refused_and_changes_nothing():
     with pytest.raises(InfeasibleError, match="with robot 2 first: expected robot 2 to pass robot 0 first without a cycle"):
         sup.cut_plan(0, 20)
     assert acyclic(sup) and sup.cut_plan(0, 40) == 40  # its own goal: nothing to settle
+
+
+def test_the_delays_apart_are_those_of_the_per_delay_test():
+    """:func:`~supervisor_loops.delays_apart` (every start delay at once) against the
+    padded-paths test of each delay in turn, on random walks that meet, wait and stop."""
+    for seed in range(40):
+        rng = np.random.default_rng(seed)
+        path, other = (np.cumsum(rng.normal(0, 0.3, (int(rng.integers(2, 40)), 2)), axis=0) for _ in range(2))
+        reach, max_delay = float(rng.uniform(0.1, 0.8)), int(rng.integers(1, 60))
+        each = [_apart(np.vstack([np.repeat(path[:1], d, axis=0), path]), other, reach) for d in range(max_delay)]
+        assert delays_apart(path, other, reach, max_delay).tolist() == each, seed

@@ -40,8 +40,19 @@ def parked_first(sup: Supervisor) -> int:
     if space.n_obstacles == 0:
         return 0
     active = labels[space.side_obstacle] == space.side_other
-    highest = np.maximum.reduceat(space.profile, space.side_offset)
-    return int(np.count_nonzero(active & (highest >= space.lengths[space.side_other])))
+    return int(np.count_nonzero(active & parks_inside(space)))
+
+
+def parks_inside(space) -> np.ndarray:
+    """Per side: its other robot's rows reach that robot's goal step (computed once per plan)."""
+    if PARKING.get("space") is not space:
+        highest = np.maximum.reduceat(space.profile, space.side_offset)
+        PARKING.update(space=space, parks=highest >= space.lengths[space.side_other])
+    return PARKING["parks"]
+
+
+PARKING: dict = {}
+"""The last plan's :func:`parks_inside` (its space and the mask)."""
 
 
 class Interleaving:
@@ -51,8 +62,7 @@ class Interleaving:
         self.rng = rng = np.random.default_rng([seed, 7])
         traj = wandering_instance(rng, n, TOLERANCE)
         probability = rng.uniform(0.0, 0.5, traj.positions.shape[:2])  # per robot and step: TFA and TFF differ
-        self.sup = Supervisor(traj, executor=executor_for(traj, method, probability), position_tolerance=TOLERANCE,
-                              lookahead=1 + seed % 2)
+        self.sup = self.supervisor(seed, method, traj, probability)
         self.n, self.appends_left, self.cuts_left = n, appends, cuts
         self.x = np.zeros(n, np.intp)
         self.allowed = np.zeros(n, np.intp)
@@ -67,10 +77,16 @@ class Interleaving:
         self.stall: dict | None = None
         self.graph: tuple | None = None
 
+    def supervisor(self, seed: int, method: str, traj, probability: np.ndarray) -> Supervisor:
+        """The supervisor of the run (``probability``: the disturbances drawn per robot and step)."""
+        return Supervisor(traj, executor=executor_for(traj, method, probability), position_tolerance=TOLERANCE,
+                          lookahead=1 + seed % 2)
+
     def check(self) -> None:
-        self.counts["calls"] += 1
-        self.counts["overestimates"] += int(np.count_nonzero(self.sup.known > self.x))
-        graph = (id(self.sup.space), self.sup.execution_state.labels.tobytes(), self.sup.known.tobytes())
+        sup, counts = self.sup, self.counts
+        counts["calls"] += 1
+        counts["overestimates"] += int(np.count_nonzero(sup.known > self.x))
+        graph = (id(sup.space), sup.execution_state.labels.tobytes(), sup.known.tobytes())
         if graph != self.graph:  # the active segment graph and Eq. 1 depend on these alone
             self.graph = graph
             self.watch.check(self.sup)
@@ -84,7 +100,9 @@ class Interleaving:
         going back and forth: a stall no cycle shows), for the methods that flip an
         obstacle at most once (TFF, TFA, BTPG; ``optimal`` re-decides its open orders
         at every decision by design)."""
-        events = self.sup.events
+        events = self.sup.execution_state.events  # what ``sup.events`` copies (one thread here)
+        if len(events) == self.events_seen:
+            return
         once = self.sup.executor.variant.method is not Method.OPTIMAL
         for event in events[self.events_seen:]:
             if event["kind"] == "flip" and once:
@@ -159,18 +177,19 @@ class Interleaving:
 
     # -- the run ---------------------------------------------------------------------------------
     def events(self) -> list:
-        rng, events = self.rng, []
-        for i in range(self.n):
-            if rng.random() < 0.7:
+        rng, events, n = self.rng, [], self.n
+        coins = rng.random(2 * n + 2).tolist()  # the doubles ``2n + 2`` calls of ``rng.random()`` draw, in order
+        for i in range(n):
+            if coins[2 * i] < 0.7:
                 events.append((self.report, i))
-            if rng.random() < 0.7:
+            if coins[2 * i + 1] < 0.7:
                 events.append((self.ask, i))
             events.append((self.move, i))
-        if rng.random() < 0.05:
+        if coins[2 * n] < 0.05:
             events.append((self.append, None))
-        if rng.random() < 0.02:
+        if coins[2 * n + 1] < 0.02:
             events.append((self.cut, None))
-        return [events[k] for k in rng.permutation(len(events))]
+        return [events[k] for k in rng.permutation(len(events)).tolist()]
 
     def run(self, max_ticks: int = 4000) -> dict:
         quiet = 0
@@ -179,7 +198,7 @@ class Interleaving:
             for event, i in self.events():
                 event() if i is None else event(i)
             self.deliver()
-            over = bool(np.all(self.x >= self.sup.traj.lengths))
+            over = bool((self.x >= self.sup.traj.lengths).all())
             if over and self.appends_left == 0 and self.cuts_left == 0:
                 break
             quiet = 0 if self.moved or over else quiet + 1
@@ -226,14 +245,16 @@ class ThreadLikeInterleaving(Interleaving):
 
     def __init__(self, seed: int, method: str, n: int, appends: int, cuts: int):
         super().__init__(seed, method, n, appends, cuts)
-        rng, traj = self.rng, self.sup.traj
-        probability = 0.2 if seed % 2 else rng.uniform(0.0, 0.5, traj.positions.shape[:2])
-        self.sup = Supervisor(traj, executor=executor_for(traj, method, probability), position_tolerance=TOLERANCE,
-                              lookahead=1 + seed % 3)
         self.queues: list[list] = [[] for _ in range(n + 2)]  # robots', appender's, cutter's pending events
         self.weights = np.ones(n + 2)
         self.redraw_at = 0
         self.snapshot: dict = {}
+
+    def supervisor(self, seed: int, method: str, traj, probability: np.ndarray) -> Supervisor:
+        """Drawn after the base run's ``probability`` (left unused in half the runs)."""
+        probability = 0.2 if seed % 2 else self.rng.uniform(0.0, 0.5, traj.positions.shape[:2])
+        return Supervisor(traj, executor=executor_for(traj, method, probability), position_tolerance=TOLERANCE,
+                          lookahead=1 + seed % 3)
 
     def report(self, i: int) -> None:
         rng, traj = self.rng, self.sup.traj
@@ -296,15 +317,24 @@ class ThreadLikeInterleaving(Interleaving):
             self.queues[n + 1] = [(self.read_for_cut, None), (self.write_cut, None)]
         events = []
         for _ in range(3 * n):
-            ready = np.flatnonzero([len(q) > 0 for q in self.queues])
-            if len(ready) == 0:
+            ready = [k for k, queue in enumerate(self.queues) if queue]
+            if not ready:
                 break
             w = self.weights[ready] + 1e-3
-            events.append(self.queues[int(rng.choice(ready, p=w / w.sum()))].pop(0))
+            events.append(self.queues[ready[weighted_index(rng, w / w.sum())]].pop(0))
         return events
 
     def stuck(self, quiet: int) -> bool:
         return quiet >= QUIET_TICKS and supervisor_deadlocked(self.sup)
+
+
+def weighted_index(rng: np.random.Generator, p: np.ndarray) -> int:
+    """``rng.choice(len(p), p=p)`` without its checks of ``p``: the same index from the same
+    single uniform draw (``Generator.choice``: the normalised cumulative sum, searched on
+    the right)."""
+    cdf = p.cumsum()
+    cdf /= cdf[-1]
+    return int(cdf.searchsorted(rng.random(), side="right"))
 
 
 BROKEN = ("cycles", "stalled", "contacts", "overestimates", "parked_first", "deadlocked", "reflips")

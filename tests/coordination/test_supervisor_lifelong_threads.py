@@ -68,7 +68,7 @@ class LifelongWorld:
             self.quiet.count(i, moved)
             self.overestimates += int(np.count_nonzero(self.sup.known > self.x))
             self.rounds_after_changes += self.changers_left == 0
-            finished = bool(np.all(self.x >= self.sup.traj.lengths))
+            finished = bool((self.x >= self.sup.traj.lengths).all())
             self.stalled = self.stalled or self.rounds_after_changes > self.budget or self.quiet.stalled(self.sup, finished)
             self.over = self.over or self.stalled or (self.changers_left == 0 and finished)
 

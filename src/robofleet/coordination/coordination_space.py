@@ -118,17 +118,35 @@ def build_coordination_space(traj: Trajectories, window: int = 32, check_plan: b
     arguments.instance(traj, Trajectories, "traj", "a Trajectories plan (load_trajectories, make_trajectories)")
     window = arguments.count(window, "window", minimum=1)
     arguments.flag(check_plan, "check_plan")
+    return space_of_cells(traj, pair_cells(traj, window), check_plan)
+
+
+def pair_cells(traj: Trajectories, window: int = 32, robot: int | None = None) -> dict[tuple[int, int], np.ndarray]:
+    """The cells ``(k_i, k_j)`` of ``O_ij`` (int ``(c, 2)``) of every pair ``i < j`` that has
+    some (of every such pair with ``robot`` when given).
+
+    A pair's cells depend on nothing but the two robots' plans up to their goal steps (a
+    window pair is skipped only when its boxes, which hold those steps, are ``2r`` apart,
+    and then so are all its cells): after a change of one robot's plan the other pairs'
+    cells are those of the old plan (:meth:`~.supervisor.Supervisor.append_plan`)."""
     boxes = _window_boxes(traj, window)
     reach = 2.0 * traj.radius
-    cells, pair_of_cell, pairs = [], [], []
+    cells = {}
     for i, j in _candidate_pairs(traj, reach):
-        c = _close_cells(traj, boxes, window, reach, i, j)
-        if len(c):
-            cells.append(c)
-            pair_of_cell.append(np.full(len(c), len(pairs)))
-            pairs.append((i, j))
+        if robot is None or robot in (i, j):
+            c = _close_cells(traj, boxes, window, reach, i, j)
+            if len(c):
+                cells[(i, j)] = c
+    return cells
+
+
+def space_of_cells(traj: Trajectories, cells_of_pair: dict[tuple[int, int], np.ndarray], check_plan: bool = True) -> CoordinationSpace:
+    """The coordination space of ``traj`` from the cells of its pairs (:func:`pair_cells`)."""
+    pairs = sorted(cells_of_pair)
     if not pairs:
         return _empty_space(traj.lengths)
+    cells = [cells_of_pair[pair] for pair in pairs]
+    pair_of_cell = [np.full(len(c), k) for k, c in enumerate(cells)]
     cells, pair_of_cell = np.concatenate(cells), np.concatenate(pair_of_cell)
     comp, first_cell = _components(cells, pair_of_cell, int(traj.lengths.max()))
     pairs = np.asarray(pairs)

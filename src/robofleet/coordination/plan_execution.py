@@ -276,13 +276,17 @@ class PlanExecutor:
         """Step ``t``'s decisions: flip tests (TFF/TFA), first come (BTPG) or the optimal orders
         (every ``optimal.period`` steps, and when a robot stopped where the order may change
         calls one), then Eq. 1; flags a deadlock (Definition 1)."""
+        blocking = state.rule.blocking_sides(state.labels, state.x)
+        flips = state.stats["flips"]  # every relabelling counts one: unchanged, the labels keep ``blocking``
         if self.variant.flips_when_blocked:
-            self._flip_round(state.rule, state.labels, state.x, state.tried, state.detector, state.stats, state.events, t)
+            self._flip_round(state.rule, state.labels, state.x, state.tried, state.detector, state.stats, state.events, t,
+                             blocking)
         elif state.orders is not None:
-            called = state.orders.call(state.rule.blocking_sides(state.labels, state.x), state.x, state.tried)
+            called = state.orders.call(blocking, state.x, state.tried)
             if called or state.orders.due(t):
                 self._optimal_round(state, t)
-        waiting, moving, finished = state.rule.states(state.labels, state.x)
+        waiting, moving, finished = state.rule.states(state.labels, state.x,
+                                                      blocking if state.stats["flips"] == flips else None)
         if self.record_cycles:
             state.cycle_log.append(self._cycle_now(state.labels, state.x))
         decision = Decision(waiting, moving, finished)
@@ -371,9 +375,10 @@ class PlanExecutor:
             self.layout = build_segment_layout(self.space, self.resolution)
         return self.detector(self.layout, labels)
 
-    def _flip_round(self, rule, labels, x, tried, detector, stats, events, t) -> None:
-        """Flip tests for every waiting robot's blocking obstacles (in robot order)."""
-        blocking = np.flatnonzero(rule.blocking_sides(labels, x))
+    def _flip_round(self, rule, labels, x, tried, detector, stats, events, t, blocking=None) -> None:
+        """Flip tests for every waiting robot's blocking obstacles (in robot order); ``blocking``:
+        ``rule.blocking_sides(labels, x)`` when known."""
+        blocking = np.flatnonzero(rule.blocking_sides(labels, x) if blocking is None else blocking)
         if len(blocking) == 0:
             return
         test = self.flip_test or FLIP_TESTS[self.variant.method]

@@ -15,6 +15,7 @@ Safety in discrete steps with simultaneous moves: while ``ℓ(o) = j`` the invar
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -33,20 +34,28 @@ class ActionRule:
 
     def blocking_sides(self, labels: np.ndarray, progress: np.ndarray) -> np.ndarray:
         """Boolean ``(2m,)``: sides whose obstacle stops their waiter now (first case of Eq. 1)."""
-        s = self.space
-        if s.n_obstacles == 0:
+        if self.space.n_obstacles == 0:
             return np.zeros(0, dtype=bool)
-        active = labels[s.side_obstacle] == s.side_other
-        nxt = progress[s.side_waiter] + 1
-        inside = (nxt >= s.side_lo) & (nxt <= s.side_hi)
-        top = s.profile[s.side_offset + np.clip(nxt - s.side_lo, 0, s.side_hi - s.side_lo)]
-        return active & inside & (top >= progress[s.side_other])
+        obstacle, other, waiter, lo, hi, offset, profile = self._sides
+        active = labels[obstacle] == other
+        nxt = progress[waiter] + 1
+        inside = (nxt >= lo) & (nxt <= hi)
+        top = profile[offset + np.where(inside, nxt - lo, 0)]  # a side's own column when inside (else unused)
+        return active & inside & (top >= progress[other])
 
-    def states(self, labels: np.ndarray, progress: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """``(waiting, moving, finished)`` boolean masks ``(n,)``; ``a_i(t) = moving[i]``."""
+    def states(self, labels: np.ndarray, progress: np.ndarray,
+               blocking: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``(waiting, moving, finished)`` boolean masks ``(n,)``; ``a_i(t) = moving[i]``.
+        ``blocking``: :meth:`blocking_sides` of these labels and progress, when known."""
         s = self.space
         finished = progress >= s.lengths
         blocked = np.zeros(s.n_robots, dtype=bool)
-        blocked[s.side_waiter[self.blocking_sides(labels, progress)]] = True
+        blocked[s.side_waiter[self.blocking_sides(labels, progress) if blocking is None else blocking]] = True
         waiting = blocked & ~finished
         return waiting, ~blocked & ~finished, finished
+
+    @cached_property
+    def _sides(self) -> tuple[np.ndarray, ...]:
+        """The side arrays :meth:`blocking_sides` reads (looked up once per plan)."""
+        s = self.space
+        return s.side_obstacle, s.side_other, s.side_waiter, s.side_lo, s.side_hi, s.side_offset, s.profile

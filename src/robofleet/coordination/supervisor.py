@@ -166,7 +166,8 @@ Lifelong plans
     for the plan it was made on, so every later first-come flip goes through the cycle
     test) and ``optimal`` (its decisions restart on the new plan with this cycle test).
 
-    Costs and limits: rebuilding is that of the whole plan's coordination space and its
+    Costs and limits: rebuilding is that of the whole plan's coordination space (distances
+    for the pairs with the changed robot only: the other pairs' cells carry over) and its
     segment graph, plus a dense ``K_i × K_j`` grid for each pair with the changed robot;
     appends need known disturbance probabilities (the new steps take the goal's); an
     appended path that ends on another robot's remaining path, or passes a robot parked
@@ -188,6 +189,7 @@ Guarantees
 
 from __future__ import annotations
 
+import bisect
 import dataclasses
 import functools
 import threading
@@ -204,7 +206,7 @@ from ..core.config import ScenarioSource, load_spec
 from ..core.errors import ConfigError, InfeasibleError, short_repr
 from ..core.geometry import point_segment_distance
 from ..core.rng import resolve_seed
-from .coordination_space import CoordinationSpace, build_coordination_space
+from .coordination_space import CoordinationSpace, build_coordination_space, pair_cells, space_of_cells
 from .instance import prepare_instance
 from .label_flipping import KnownProbabilities
 from .plan_execution import Decision, ExecutionState, Method, PlanExecutor, Variant
@@ -221,6 +223,11 @@ DEFAULT_LOOKAHEAD = 10
 ROUNDING = 1e-9
 """Relative margin on the distances of a position report (see *Position reports*): a
 position exactly at the tolerance is never refused for a rounding error."""
+
+SCAN_ROWS = 32
+"""Profile entries in a robot's window up to which :meth:`Supervisor.horizon` scans them in
+plain Python (cheaper than numpy's per-call overhead on a few entries); more go through
+numpy. Both give the same step."""
 
 Result = TypeVar("Result")
 
@@ -313,6 +320,7 @@ class Supervisor:
         self._entries = ProfileEntries.of(self.space)
         self._first_sides = 2 * np.arange(self.space.n_obstacles)
         self.standing = np.zeros(n, np.intp)
+        self._cells: dict[tuple[int, int], np.ndarray] | None = None
 
     # -- construction ---------------------------------------------------------------------------
     @classmethod
@@ -347,31 +355,36 @@ class Supervisor:
         robot.
         """
         i = self.robot_index(robot)
-        holding = arguments.flag(holding, "holding")
+        holding = holding if type(holding) is bool else arguments.flag(holding, "holding")
         if (progress is None) == (position is None):
             raise ConfigError(f"report: expected exactly one of progress= or position=, received progress={progress!r}, position={short_repr(position)}")
         if progress is not None:
             lowest = highest = self.checked_step(i, progress)
         else:
             lowest, highest = self.steps_of_position(i, position, holding)
-        if lowest > self.known[i]:
-            self.known[i] = lowest
+        known, reached = int(self.known[i]), int(self.reach[i])
+        if lowest > known:
+            self.known[i] = known = lowest
             self._decision = None
-        self.standing[i] = max(self.known[i], highest)
-        reach = max(self.known[i], highest) if holding else max(self.reach[i], self.known[i])
-        if reach < self.reach[i]:  # a robot known to hold still may be offered flips again
+        self.standing[i] = max(known, highest)
+        reach = max(known, highest) if holding else max(reached, known)
+        if reach < reached:  # a robot known to hold still may be offered flips again
             self._decision = None
         self.reach[i] = reach
-        return int(self.known[i])
+        return known
 
     def robot_index(self, robot: object) -> int:
-        n = self.traj.n_robots
+        n = len(self.known)
+        if type(robot) is int and 0 <= robot < n:  # the common case first
+            return robot
         if isinstance(robot, bool) or not isinstance(robot, (int, np.integer)) or not 0 <= robot < n:
             raise ConfigError(f"robot: expected an index in 0..{n - 1}, received {short_repr(robot)}")
         return int(robot)
 
     def checked_step(self, i: int, progress: object) -> int:
         k = int(self.traj.lengths[i])
+        if type(progress) is int and 0 <= progress <= k:  # the common case first
+            return progress
         if isinstance(progress, bool) or not isinstance(progress, (int, np.integer)) or not 0 <= progress <= k:
             raise ConfigError(f"progress: expected robot {i}'s plan step, an integer in 0..{k}, received {short_repr(progress)}")
         return int(progress)
@@ -397,14 +410,15 @@ class Supervisor:
     def answer(self, robot: int) -> Answer:
         """``go`` (up to ``until``), ``wait`` or ``done`` for one robot, from what is known now."""
         i = self.robot_index(robot)
-        decision = self.decision()
+        decision = self._current_decision()
         x = int(self.known[i])
         if decision.finished[i]:
             return self._answer(i, "done", x)
         if not decision.moving[i]:
             return self._answer(i, "wait", x)
         until = self.horizon(i)
-        self.reach[i] = max(self.reach[i], until)
+        if until > self.reach[i]:
+            self.reach[i] = until
         return self._answer(i, "go", until)
 
     @locked
@@ -418,6 +432,10 @@ class Supervisor:
     @locked
     def decision(self) -> Decision:
         """The executor's decision step on what is known (cached until a report adds something)."""
+        return self._current_decision()
+
+    def _current_decision(self) -> Decision:
+        """:meth:`decision`, for a caller that holds the lock."""
         if self._decision is None:
             self._decision = self.decide()
         return self._decision
@@ -451,16 +469,24 @@ class Supervisor:
         """The furthest step robot ``i`` may advance to now: before the first column where
         Eq. 1 stops it, given the others' known progress (at most ``lookahead`` steps
         ahead — or one step past the furthest step its latest report lets it stand at, if
-        that is further — and at most its goal step). ``O(log P + entries in the window)``,
-        vectorized."""
+        that is further — and at most its goal step). ``O(log P + entries in the window)``:
+        a short window's entries are scanned in plain Python, a long one's vectorized."""
         x = int(self.known[i])
         goal = int(self.traj.lengths[i])
         until = goal if self.lookahead is None else min(goal, max(x + self.lookahead, int(self.standing[i]) + 1))
         e = self._entries
-        lo, hi = e.start[i], e.start[i + 1]
-        rows = slice(lo + np.searchsorted(e.col[lo:hi], x, "right"), lo + np.searchsorted(e.col[lo:hi], until, "right"))
-        side, col, top = e.side[rows], e.col[rows], e.top[rows]
-        other = self.space.side_other[side]
+        lo, hi = e.bounds[i], e.bounds[i + 1]
+        first = bisect.bisect_right(e.cols, x, lo, hi)
+        last = bisect.bisect_right(e.cols, until, first, hi)
+        if last - first <= SCAN_ROWS:  # the first blocked entry has the smallest column: its rows are sorted
+            labels, known = self.execution_state.labels, self.known
+            for row in range(first, last):
+                other = e.others[row]
+                if labels[e.obstacles[row]] == other and e.tops[row] >= known[other]:
+                    return min(until, e.cols[row] - 1)
+            return until
+        rows = slice(first, last)
+        side, col, top, other = e.side[rows], e.col[rows], e.top[rows], e.other[rows]
         blocked = (self.execution_state.labels[side // 2] == other) & (top >= self.known[other])
         return min(until, int(col[blocked].min()) - 1) if blocked.any() else until
 
@@ -519,7 +545,9 @@ class Supervisor:
         choose the passing orders the change leaves open, then switch to it all (nothing
         changes when a check refuses; see *Lifelong plans* in the module docstring)."""
         traj = Trajectories(positions, lengths, self.traj.radius, self.traj.dt)
-        space = build_coordination_space(traj, check_plan=False)
+        cells = {pair: c for pair, c in self._plan_cells().items() if i not in pair}  # the others' plans are as they were
+        cells.update(pair_cells(traj, robot=i))
+        space = space_of_cells(traj, cells, check_plan=False)
         labels, tried, changed = carried_labels(self.traj, self.space, self.execution_state, traj, space, i)
         layout = build_segment_layout(space, Resolution.EXACT)
         try:
@@ -539,7 +567,15 @@ class Supervisor:
                                                    detector=flip_detector(executor, detector), orders=orders)
         self._entries = ProfileEntries.of(space)
         self._first_sides = 2 * np.arange(space.n_obstacles)
+        self._cells = cells
         self._decision = None
+
+    def _plan_cells(self) -> dict[tuple[int, int], np.ndarray]:
+        """The cells of every pair of the current plan (:func:`~.coordination_space.pair_cells`;
+        computed at the first change, then carried from change to change)."""
+        if self._cells is None:
+            self._cells = pair_cells(self.traj)
+        return self._cells
 
     def _settle_orders(self, i: int, space: CoordinationSpace, labels: np.ndarray, regions: np.ndarray,
                        detector: IncrementalCycleDetector, what: str) -> None:
@@ -636,13 +672,27 @@ class Supervisor:
 @dataclass(frozen=True)
 class ProfileEntries:
     """Every side profile entry (waiter column ``col``, highest other-robot step ``top``,
-    its ``side``), grouped by waiter and sorted by column: robot ``i``'s rows are
-    ``start[i]:start[i + 1]``, so a window of its columns is two binary searches."""
+    its ``side`` and that side's ``other`` robot), grouped by waiter and sorted by column:
+    robot ``i``'s rows are ``start[i]:start[i + 1]``, so a window of its columns is two
+    binary searches."""
 
     side: np.ndarray
     col: np.ndarray
     top: np.ndarray
     start: np.ndarray
+    other: np.ndarray
+    cols: list[int] = dataclasses.field(init=False, repr=False)
+    """The same entries as lists (a short window is scanned in plain Python): ``col``, ``top``,
+    ``other``, the obstacle of each entry's side, and ``start``."""
+    tops: list[int] = dataclasses.field(init=False, repr=False)
+    others: list[int] = dataclasses.field(init=False, repr=False)
+    obstacles: list[int] = dataclasses.field(init=False, repr=False)
+    bounds: list[int] = dataclasses.field(init=False, repr=False)
+
+    def __post_init__(self):
+        lists = dict(cols=self.col, tops=self.top, others=self.other, obstacles=self.side // 2, bounds=self.start)
+        for name, values in lists.items():
+            object.__setattr__(self, name, values.tolist())
 
     @classmethod
     def of(cls, space: CoordinationSpace) -> ProfileEntries:
@@ -651,7 +701,7 @@ class ProfileEntries:
         col = space.side_lo[side] + np.arange(len(side)) - space.side_offset[side]
         order = np.lexsort((col, space.side_waiter[side]))
         start = np.searchsorted(space.side_waiter[side][order], np.arange(space.n_robots + 1))
-        return cls(side[order], col[order], space.profile[order], start)
+        return cls(side[order], col[order], space.profile[order], start, space.side_other[side[order]])
 
 
 def plan_executor(traj: Trajectories, method: str, deadlock_check: bool, probability: float | np.ndarray,
