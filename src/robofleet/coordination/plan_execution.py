@@ -279,8 +279,7 @@ class PlanExecutor:
         blocking = state.rule.blocking_sides(state.labels, state.x)
         flips = state.stats["flips"]  # every relabelling counts one: unchanged, the labels keep ``blocking``
         if self.variant.flips_when_blocked:
-            self._flip_round(state.rule, state.labels, state.x, state.tried, state.detector, state.stats, state.events, t,
-                             blocking)
+            self._flip_round(state.labels, state.x, state.tried, state.detector, state.stats, state.events, t, blocking)
         elif state.orders is not None:
             called = state.orders.call(blocking, state.x, state.tried)
             if called or state.orders.due(t):
@@ -375,10 +374,10 @@ class PlanExecutor:
             self.layout = build_segment_layout(self.space, self.resolution)
         return self.detector(self.layout, labels)
 
-    def _flip_round(self, rule, labels, x, tried, detector, stats, events, t, blocking=None) -> None:
+    def _flip_round(self, labels, x, tried, detector, stats, events, t, blocking) -> None:
         """Flip tests for every waiting robot's blocking obstacles (in robot order); ``blocking``:
-        ``rule.blocking_sides(labels, x)`` when known."""
-        blocking = np.flatnonzero(rule.blocking_sides(labels, x) if blocking is None else blocking)
+        the rule's :meth:`~.rmtrack.ActionRule.blocking_sides` of ``labels`` and ``x``."""
+        blocking = np.flatnonzero(blocking)
         if len(blocking) == 0:
             return
         test = self.flip_test or FLIP_TESTS[self.variant.method]
