@@ -6,11 +6,17 @@ two test workers would each compile the same kernels at the same time, in their 
 tests. Instead the controller runs a few steps of every shipped scenario first, in two
 processes side by side (one per worker, the families split by compile time), and the
 workers load what those compiled. Run as a script it warms the families it is given:
-``python tests/kernel_cache.py avoidance flocking``.
+``python tests/kernel_cache.py avoidance flocking``; with ``--record FOLDER`` it also writes,
+per family, how often each robofleet kernel was compiled during that family's runs
+(``FOLDER/<family>.json``): from an empty cache, that is what a first run in a fresh
+environment compiles, which ``tests/search/test_compile_once.py`` reads instead of compiling
+the search kernels a second time.
 """
 
 from __future__ import annotations
 
+import collections
+import json
 import os
 import re
 import subprocess
@@ -62,33 +68,70 @@ def is_warm() -> bool:
     return True
 
 
-def warm_up() -> None:
+def is_empty() -> bool:
+    """Whether no kernel module has a cache index yet (a fresh environment)."""
+    return not any(any(cache_directory(source).glob(f"{source.stem}.*.nbi")) for source in kernel_sources())
+
+
+def warm_up(record: Path) -> bool:
     """Compile into the cache in :data:`WARM_UP_GROUPS` processes side by side, unless it
-    is warm already. A scenario that fails to run is left to the tests to report."""
+    is warm already. A scenario that fails to run is left to the tests to report. When the
+    cache was empty, the compile counts of every family are written to ``record``
+    (:func:`run_families`) and ``True`` is returned."""
     if os.environ.get("NUMBA_DISABLE_JIT") == "1" or is_warm():
-        return
+        return False
+    fresh = is_empty()
+    options = ["--record", str(record)] if fresh else []
     env = {**os.environ, "MPLBACKEND": "Agg"}
-    processes = [subprocess.Popen([sys.executable, __file__, *families], env=env, stdout=subprocess.DEVNULL,
+    processes = [subprocess.Popen([sys.executable, __file__, *options, *families], env=env, stdout=subprocess.DEVNULL,
                                   stderr=subprocess.DEVNULL) for families in WARM_UP_GROUPS]
     for process in processes:
         process.wait()
+    return fresh
 
 
-def run_families(families: list[str]) -> None:
-    """A few steps of every shipped scenario of ``families`` (and its :data:`VARIANTS`), seed 1."""
+def run_families(families: list[str], record: Path | None = None) -> None:
+    """A few steps of every shipped scenario of ``families`` (and its :data:`VARIANTS`), seed
+    1, a family at a time; with ``record``, how often each robofleet kernel was compiled
+    during a family's runs goes to ``record/<family>.json``."""
+    from numba.core import event
+
     import robofleet
     from robofleet.scenarios import catalogue
 
-    for name in catalogue.names():
-        family = name.split("/")[0]
-        if family not in families:
-            continue
-        for overrides in [{}, *VARIANTS.get(name, [])]:
-            try:
-                robofleet.simulate(robofleet.load_scenario(name, {**SHORT_RUNS[family], **overrides}), seed=1)
-            except Exception:  # noqa: BLE001 - the tests of that scenario report it
-                continue
+    for family in families:
+        with event.install_recorder("numba:compile") as compiles:
+            for name in (name for name in catalogue.names() if name.split("/")[0] == family):
+                for overrides in [{}, *VARIANTS.get(name, [])]:
+                    try:
+                        robofleet.simulate(robofleet.load_scenario(name, {**SHORT_RUNS[family], **overrides}), seed=1)
+                    except Exception:  # noqa: BLE001 - the tests of that scenario report it
+                        continue
+        if record is not None:
+            write_counts(record / f"{family}.json", compile_counts(compiles.buffer))
+
+
+def compile_counts(buffer) -> dict[str, int]:
+    """How often each robofleet kernel was compiled, from numba's recorded compile events."""
+    count = collections.Counter()
+    for _, compile_event in buffer:
+        function = compile_event.data["dispatcher"].py_func
+        if compile_event.is_start and function.__module__.startswith("robofleet."):
+            count[f"{function.__module__}.{function.__qualname__}"] += 1
+    return dict(sorted(count.items()))
+
+
+def write_counts(path: Path, counts: dict[str, int]) -> None:
+    """``counts`` as JSON at ``path``, written whole (a temporary file renamed)."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    partial = path.with_suffix(".partial")
+    partial.write_text(json.dumps(counts, indent=1), encoding="utf-8")
+    partial.replace(path)
 
 
 if __name__ == "__main__":
-    run_families(sys.argv[1:])
+    arguments = sys.argv[1:]
+    if arguments[:1] == ["--record"]:
+        run_families(arguments[2:], Path(arguments[1]))
+    else:
+        run_families(arguments)
