@@ -67,6 +67,7 @@ the input sequence undetermined; the small weight selects the least-effort plan.
 from __future__ import annotations
 
 import contextlib
+import threading
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Literal
@@ -83,7 +84,7 @@ from ..dynamics import unicycle as uni
 from .braking import braking_control
 from .controller_params import MPCConfig
 from .navigation.recovery import GoalRotation
-from .rti import CondensedSQP, SQPResult, StateLimit
+from .rti import CondensedSQP, SQPResult, StateLimit, import_daqp
 
 ModelName = Literal["single_integrator", "double_integrator", "unicycle", "quadrotor"]
 MODEL_NAMES = ("single_integrator", "double_integrator", "unicycle", "quadrotor")
@@ -180,6 +181,107 @@ def _polygon(limit: float, dim: int) -> tuple[np.ndarray, float]:
     return rows, limit * np.cos(np.pi / _POLYGON_SIDES)
 
 
+BUILT_PROBLEMS_PER_THREAD = 8
+"""How many built problems (:func:`built_problem`) a thread keeps, the most recently used."""
+
+_built_problems = threading.local()
+
+
+@dataclass(frozen=True)
+class BuiltProblem:
+    """The symbolic MPC of one model and configuration, and what is derived from it alone:
+    sizes, bounds (read-only), the exact rollout and step, and the ``'rti'`` path's
+    :class:`~.rti.CondensedSQP` (none of them keeps state between calls)."""
+
+    problem: dict
+    nz: int
+    ng: int
+    n_eq: int
+    lbg: np.ndarray
+    ubg: np.ndarray
+    lbz: np.ndarray
+    ubz: np.ndarray
+    rollout: Callable
+    step: Callable
+    sqp: CondensedSQP | None
+
+
+def built_problem(model: ModelAdapter, config: MPCConfig, key: tuple) -> BuiltProblem:
+    """:func:`build_problem` of ``model`` (whose arguments are ``key``) and ``config``, kept
+    per thread for the :data:`BUILT_PROBLEMS_PER_THREAD` most recent keys: the runs of a
+    sweep build it once. A built problem is a pure function of its key, so a kept one is
+    exactly the one a fresh build would give."""
+    kept = getattr(_built_problems, "kept", None)
+    if kept is None:
+        kept = _built_problems.kept = {}
+    full_key = (key, config)
+    built = kept.pop(full_key, None)
+    if built is None:
+        built = build_problem(model, config)
+        while len(kept) >= BUILT_PROBLEMS_PER_THREAD:
+            kept.pop(next(iter(kept)))
+    kept[full_key] = built  # the most recently used last
+    return built
+
+
+def build_problem(model: ModelAdapter, config: MPCConfig) -> BuiltProblem:
+    """The MPC of the module docstring for ``model``: decision ``z = (vec X, vec U)``, the
+    parameters ``P = (x_0, goal, A, b)`` of one robot's step, cost, dynamics equalities,
+    the cell rows at stages 1…N, the norm limits and the terminal rest set."""
+    import casadi as ca
+
+    m, N, M = model, config.horizon, config.max_constraints
+    X = ca.SX.sym("X", m.nx, N + 1)
+    U = ca.SX.sym("U", m.nu, N)
+    P = ca.SX.sym("P", m.nx + m.dim + M * m.dim + M)
+    x0, goal = P[: m.nx], P[m.nx : m.nx + m.dim]
+    A = ca.reshape(P[m.nx + m.dim : m.nx + m.dim + M * m.dim], M, m.dim)
+    b = P[m.nx + m.dim + M * m.dim :]
+    pos = lambda x: x[: m.dim]
+    start = pos(x0)
+    scale = ca.fmax(ca.sumsqr(goal - start), 1.0)
+    cost = ca.sumsqr(goal - pos(X[:, N])) / scale + config.input_weight / N * ca.sumsqr(U)
+    eq = [X[:, 0] - x0] + [X[:, k + 1] - m.step(X[:, k], U[:, k]) for k in range(N)]
+    ineq = [ca.mtimes(A, pos(X[:, k])) - b for k in range(1, N + 1)]
+    for kind, sl, limit in m.norm_limits:
+        normals, offset = _polygon(limit, sl.stop - sl.start)
+        for k in range(N):
+            vec = U[sl, k] if kind == "u" else X[sl, k + 1]
+            ineq.append(ca.mtimes(ca.DM(normals), vec) - offset)
+    rest = m.rest if config.terminal_rest else None
+    if rest is not None:  # the terminal rest set (see the module docstring)
+        ineq += [X[rest, N] - config.rest_tolerance, -X[rest, N] - config.rest_tolerance]
+    g = ca.vertcat(*eq, *ineq)
+    z = ca.vertcat(ca.vec(X), ca.vec(U))
+    n_eq, ng = sum(e.numel() for e in eq), g.numel()
+    xs, us = ca.SX.sym("xs", m.nx), ca.SX.sym("us", m.nu, N)
+    states = [xs]
+    for k in range(N):
+        states.append(m.step(states[-1], us[:, k]))
+    return BuiltProblem(
+        {"x": z, "p": P, "f": cost, "g": g}, z.numel(), ng, n_eq,
+        read_only(np.concatenate([np.zeros(n_eq), np.full(ng - n_eq, -np.inf)])), read_only(np.zeros(ng)),
+        read_only(np.concatenate([np.full(m.nx * (N + 1), -np.inf), np.tile(m.u_lo, N)])),
+        read_only(np.concatenate([np.full(m.nx * (N + 1), np.inf), np.tile(m.u_hi, N)])),
+        ca.Function("rollout", [xs, us], [ca.horzcat(*states)]), ca.Function("step", [xs, us[:, 0]], [m.step(xs, us[:, 0])]),
+        None if m.linear else condensed_sqp(m, config, rest))
+
+
+def condensed_sqp(m: ModelAdapter, config: MPCConfig, rest: slice | None) -> CondensedSQP:
+    """The :class:`~.rti.CondensedSQP` of model ``m`` with its speed limit and rest set (the
+    ``'rti'`` solver, and the recovery of ``'ipopt'``)."""
+    limits = tuple(StateLimit(sl, *_polygon_rows(limit, sl.stop - sl.start)) for kind, sl, limit in m.norm_limits if kind == "x")
+    return CondensedSQP(m.step, nx=m.nx, nu=m.nu, dim=m.dim, horizon=config.horizon, u_lo=m.u_lo, u_hi=m.u_hi,
+                        input_weight=config.input_weight, iterations=config.sqp_iterations, limits=limits,
+                        rest=rest, rest_tolerance=config.rest_tolerance)
+
+
+def read_only(array: np.ndarray) -> np.ndarray:
+    """``array``, no longer writable (it is shared by the controllers of a built problem)."""
+    array.flags.writeable = False
+    return array
+
+
 class BuavcMPC:
     """One robot model's B-UAVC MPC, built once and solved for each robot every step.
 
@@ -201,6 +303,7 @@ class BuavcMPC:
         if config.horizon <= 0:
             raise ConfigError(f"horizon: expected an integer > 0, received {config.horizon!r}")
         self.model = model_adapter(model, params, dim, dt, speed_limit)
+        self._model_key = (model, params, dim, dt, speed_limit)
         self.band = config.noise_band * position_sigma
         self.reach = config.horizon * dt * (1.0 if speed_limit is None else speed_limit)  # how far one plan can go
         self.config = config
@@ -221,70 +324,30 @@ class BuavcMPC:
 
     # ------------------------------------------------------------------ problem build
     def _build(self) -> None:
+        """The problem of this model and configuration (:func:`built_problem`, shared by
+        every controller built alike in this thread) and this controller's own QP/NLP
+        solver: qpOASES hot-starts from its previous call, so a solver is never shared."""
         import casadi as ca  # imported here: loading a scenario must not pay for casadi
 
-        m, N, M = self.model, self.config.horizon, self.config.max_constraints
-        X = ca.SX.sym("X", m.nx, N + 1)
-        U = ca.SX.sym("U", m.nu, N)
-        P = ca.SX.sym("P", m.nx + m.dim + M * m.dim + M)
-        x0, goal = P[: m.nx], P[m.nx : m.nx + m.dim]
-        A = ca.reshape(P[m.nx + m.dim : m.nx + m.dim + M * m.dim], M, m.dim)
-        b = P[m.nx + m.dim + M * m.dim :]
-        pos = lambda x: x[: m.dim]
-        start = pos(x0)
-        scale = ca.fmax(ca.sumsqr(goal - start), 1.0)
-        cost = ca.sumsqr(goal - pos(X[:, N])) / scale + self.config.input_weight / N * ca.sumsqr(U)
-        eq = [X[:, 0] - x0] + [X[:, k + 1] - m.step(X[:, k], U[:, k]) for k in range(N)]
-        ineq = [ca.mtimes(A, pos(X[:, k])) - b for k in range(1, N + 1)]
-        for kind, sl, limit in m.norm_limits:
-            normals, offset = _polygon(limit, sl.stop - sl.start)
-            for k in range(N):
-                vec = U[sl, k] if kind == "u" else X[sl, k + 1]
-                ineq.append(ca.mtimes(ca.DM(normals), vec) - offset)
-        rest = self._rest_slice()
-        if rest is not None:  # the terminal rest set (see the module docstring)
-            ineq += [X[rest, N] - self.config.rest_tolerance, -X[rest, N] - self.config.rest_tolerance]
-        g = ca.vertcat(*eq, *ineq)
-        z = ca.vertcat(ca.vec(X), ca.vec(U))
-        n_eq = sum(e.numel() for e in eq)
-        self._nz, self._ng, self._n_eq = z.numel(), g.numel(), n_eq
-        self._lbg = np.concatenate([np.zeros(n_eq), np.full(self._ng - n_eq, -np.inf)])
-        self._ubg = np.zeros(self._ng)
-        self._lbz = np.concatenate([np.full(m.nx * (N + 1), -np.inf), np.tile(m.u_lo, N)])
-        self._ubz = np.concatenate([np.full(m.nx * (N + 1), np.inf), np.tile(m.u_hi, N)])
-        problem = {"x": z, "p": P, "f": cost, "g": g}
-        xs, us = ca.SX.sym("xs", m.nx), ca.SX.sym("us", m.nu, N)
-        states = [xs]
-        for k in range(N):
-            states.append(m.step(states[-1], us[:, k]))
-        self._rollout = ca.Function("rollout", [xs, us], [ca.horzcat(*states)])
-        self._step = ca.Function("step", [xs, us[:, 0]], [m.step(xs, us[:, 0])])
+        built = built_problem(self.model, self.config, self._model_key)
+        if built.sqp is not None:
+            import_daqp()  # a kept problem checks for its QP solver as a fresh build does
+        self._nz, self._ng, self._n_eq = built.nz, built.ng, built.n_eq
+        self._lbg, self._ubg, self._lbz, self._ubz = built.lbg, built.ubg, built.lbz, built.ubz
+        self._rollout, self._step, self._sqp = built.rollout, built.step, built.sqp
         self._first_solve = True
-        self._sqp = None if m.linear else self._condensed_sqp()  # the 'rti' solver, and the recovery of 'ipopt'
         self._solver = None
-        if m.linear:
+        if self.model.linear:
             with quiet_stdout():  # qpOASES prints its licence banner on construction
-                self._solver = ca.qpsol("buavc_mpc", QP_SOLVER, problem, QP_OPTIONS[QP_SOLVER])
+                self._solver = ca.qpsol("buavc_mpc", QP_SOLVER, built.problem, QP_OPTIONS[QP_SOLVER])
         elif self.config.solver == "ipopt":
-            self._solver = ca.nlpsol("buavc_mpc", "ipopt", problem, {
+            self._solver = ca.nlpsol("buavc_mpc", "ipopt", built.problem, {
                 "print_time": False, "error_on_fail": False,
                 "ipopt": {"print_level": 0, "sb": "yes", "max_iter": self.config.max_iter, "tol": 1e-6,
                           "acceptable_tol": 1e-4, "acceptable_iter": 2, "warm_start_init_point": "yes",
                           "mu_init": 1e-3, "mu_strategy": "adaptive", "warm_start_bound_push": 1e-9,
                           "warm_start_mult_bound_push": 1e-9},
             })
-
-    def _rest_slice(self) -> slice | None:
-        """The state components that must vanish at the end of the plan (``terminal_rest``)."""
-        return self.model.rest if self.config.terminal_rest else None
-
-    def _condensed_sqp(self) -> CondensedSQP:
-        """The :class:`~.rti.CondensedSQP` of this model with its speed limit and rest set."""
-        m = self.model
-        limits = tuple(StateLimit(sl, *_polygon_rows(limit, sl.stop - sl.start)) for kind, sl, limit in m.norm_limits if kind == "x")
-        return CondensedSQP(m.step, nx=m.nx, nu=m.nu, dim=m.dim, horizon=self.config.horizon, u_lo=m.u_lo, u_hi=m.u_hi,
-                            input_weight=self.config.input_weight, iterations=self.config.sqp_iterations, limits=limits,
-                            rest=self._rest_slice(), rest_tolerance=self.config.rest_tolerance)
 
     # ------------------------------------------------------------------ per-step solve
     def cell_parameters(self, A: np.ndarray, b: np.ndarray, valid: np.ndarray, position: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
