@@ -107,37 +107,50 @@ def plot_comparison(table: pd.DataFrame, path: str | Path) -> Path:
 
 
 def animate_trace(trace: Trace, path: str | Path, fps: int = 15, max_frames: int = 150, tail: int = 60) -> Path:
-    """GIF of a run: leader (triangle), followers with trails, the slots of the estimated target."""
+    """GIF of a run: leader (triangle), followers with trails, the slots of the estimated
+    target. The axes, the legend and the labels are drawn once; each frame moves only the
+    trails, the markers and the title (blitted, :func:`~.animation.save_gif`)."""
     pos = trace.positions
     targets = trace.arrays["estimated_target"]
-    times = trace.arrays["time"]
+    times, heading = trace.arrays["time"], trace.arrays["leader_heading"]
     frames = frame_indices(len(pos), max_frames)
     lo, hi = pos.reshape(-1, 2).min(axis=0) - 20, pos.reshape(-1, 2).max(axis=0) + 20
     fig, ax = workspace_figure(lo, hi)
-    handles = [proxy("leader (along its heading)", color="k", marker=">", ms=9), proxy("follower", color="C1", marker="o", ms=6),
-               proxy(f"trail (last {tail} samples)", color="C1", ls="-", lw=0.7),
-               proxy("slot of the estimated target", color="0.5", marker="o", mfc="none", ms=8)]
+    ax.set_xlim(lo[0], hi[0])
+    ax.set_ylim(lo[1], hi[1])
+    ax.set_aspect("equal")
+    ax.set(xlabel="x [units]", ylabel="y [units]")
+    outside_legend(ax, [proxy("leader (along its heading)", color="k", marker=">", ms=9),
+                        proxy("follower", color="C1", marker="o", ms=6),
+                        proxy(f"trail (last {tail} samples)", color="C1", ls="-", lw=0.7),
+                        proxy("slot of the estimated target", color="0.5", marker="o", mfc="none", ms=8)])
+    trails = [ax.plot([], [], lw=0.7, color="k" if i == 0 else f"C{i % 10}")[0] for i in range(pos.shape[1])]
+    slots = ax.scatter(targets[0, :, 0], targets[0, :, 1], facecolors="none", edgecolors="0.5", s=40)
+    followers = ax.scatter(pos[0, 1:, 0], pos[0, 1:, 1], c=[f"C{i % 10}" for i in range(1, pos.shape[1])], s=18)
+    leader = ax.plot([], [], markersize=11, color="k", ls="none")[0]
+    title = ax.set_title("", fontsize=9)
 
     def update(k: int):
-        ax.clear()
-        ax.set_xlim(lo[0], hi[0])
-        ax.set_ylim(lo[1], hi[1])
-        ax.set_aspect("equal")
         start = max(0, k - tail)
-        for i in range(pos.shape[1]):
-            ax.plot(pos[start:k + 1, i, 0], pos[start:k + 1, i, 1], lw=0.7, color="k" if i == 0 else f"C{i % 10}")
-        ax.scatter(targets[k, :, 0], targets[k, :, 1], facecolors="none", edgecolors="0.5", s=40)
-        ax.scatter(pos[k, 1:, 0], pos[k, 1:, 1], c=[f"C{i % 10}" for i in range(1, pos.shape[1])], s=18)
-        _leader_marker(ax, pos[k, 0], trace.arrays["leader_heading"][k])
-        ax.set(xlabel="x [units]", ylabel="y [units]")
-        ax.set_title(f"{run_title(trace)}\nt = {times[k]:.0f} time units · Δe = {trace.arrays['delta_e'][k]:.1f} · "
-                     f"Δr = {trace.arrays['delta_r'][k]:.1f}", fontsize=9)
-        outside_legend(ax, handles)
+        for i, trail in enumerate(trails):
+            trail.set_data(pos[start:k + 1, i, 0], pos[start:k + 1, i, 1])
+        slots.set_offsets(targets[k])
+        followers.set_offsets(pos[k, 1:])
+        leader.set_data([pos[k, 0, 0]], [pos[k, 0, 1]])
+        leader.set_marker(leader_marker(heading[k]))
+        title.set_text(f"{run_title(trace)}\nt = {times[k]:.0f} time units · Δe = {trace.arrays['delta_e'][k]:.1f} · "
+                       f"Δr = {trace.arrays['delta_r'][k]:.1f}")
+        return [*trails, slots, followers, leader, title]
 
     update(frames[0])
     fit_canvas(fig)
-    return save_gif(fig, update, frames, path, fps=fps)
+    return save_gif(fig, update, frames, path, fps=fps, blit=True)
+
+
+def leader_marker(heading: float) -> tuple:
+    """The leader's triangle marker pointing along ``heading`` [rad]."""
+    return (3, 0, np.degrees(heading) - 90)
 
 
 def _leader_marker(ax, point, heading) -> None:
-    ax.plot(point[0], point[1], marker=(3, 0, np.degrees(heading) - 90), markersize=11, color="k", ls="none")
+    ax.plot(point[0], point[1], marker=leader_marker(heading), markersize=11, color="k", ls="none")
