@@ -15,6 +15,7 @@ avoidance trace is drawn by the same two functions, from what the trace recorded
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -23,7 +24,8 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
-from matplotlib.patches import Circle, Ellipse
+from matplotlib.lines import Line2D
+from matplotlib.patches import Circle, Ellipse, FancyArrow
 from matplotlib.patches import Polygon as PolygonPatch
 
 from ..core.trace import Trace
@@ -137,30 +139,38 @@ def trace_figure(trace: Trace) -> plt.Figure:
 
 
 # -- cells and uncertainty -------------------------------------------------------------
-def draw_heading(ax: plt.Axes, position: np.ndarray, heading: float, radius: float) -> None:
-    """An arrow of length 1.8 r along ``heading`` from the robot's centre."""
-    ax.arrow(position[0], position[1], 1.8 * radius * np.cos(heading), 1.8 * radius * np.sin(heading),
-             head_width=0.4 * radius, color="k", lw=0.8, length_includes_head=True)
+def heading_arrow(ax: plt.Axes, radius: float) -> FancyArrow:
+    """A robot's heading arrow (:func:`point_heading` places it), added to ``ax``."""
+    return ax.add_patch(FancyArrow(0.0, 0.0, 1.8 * radius, 0.0, head_width=0.4 * radius, color="k", lw=0.8,
+                                   length_includes_head=True))
+
+
+def point_heading(arrow: FancyArrow, position: np.ndarray, heading: float, radius: float) -> None:
+    """``arrow`` of length 1.8 r along ``heading`` from the robot's centre."""
+    arrow.set_data(x=position[0], y=position[1], dx=1.8 * radius * np.cos(heading), dy=1.8 * radius * np.sin(heading))
 
 
 def animate_trace(trace: Trace, path: str | Path, fps: int = 10, max_frames: int = 150) -> Path:
-    """GIF of a run (:func:`animation_scene`), at most ``max_frames`` evenly spaced states."""
+    """GIF of a run (:func:`animation_scene`), at most ``max_frames`` evenly spaced states;
+    the workspace, legend and labels are drawn once, each frame blits the robots' artists."""
     fig, update = animation_scene(trace)
-    return save_gif(fig, update, frame_indices(len(trace.positions), max_frames), path, fps)
+    return save_gif(fig, update, frame_indices(len(trace.positions), max_frames), path, fps, blit=True)
 
 
-def animation_scene(trace: Trace) -> tuple[plt.Figure, Callable[[int], None]]:
-    """The figure of a run's animation and the function drawing its state ``k``: true discs
-    with trails and goals; each robot's cell when recorded, in the robot's colour, within
-    its local box (:func:`local_box_view`), while the robot has not arrived; 3σ ellipses of
-    its estimate when ``robot_cov`` is known, headings when recorded; 3-D runs from above
-    with the height as colour. The canvas is fitted to the first state's drawing
+def animation_scene(trace: Trace) -> tuple[plt.Figure, Callable[[int], list]]:
+    """The figure of a run's animation and the function setting it to state ``k`` (it
+    returns the artists it moves, per robot in drawing order): true discs with trails and
+    goals; each robot's cell when recorded, in the robot's colour, within its local box
+    (:func:`local_box_view`), while the robot has not arrived; 3σ ellipses of its estimate
+    when ``robot_cov`` is known, headings when recorded; 3-D runs from above with the
+    height as colour. The canvas is fitted to the first state's drawing
     (:func:`~.animation.fit_canvas`), the legend beside the workspace."""
     pos = trace.positions
     radius = float(trace.metadata["radius"])
     dt = float(trace.metadata["dt"])
     goals = np.asarray(trace.metadata["goals"], float)
     estimates = trace.arrays.get("estimates")
+    has_estimates = estimates is not None and len(estimates) > 0
     headings = trace.arrays.get("headings")
     cells = (trace.arrays["cell_A"], trace.arrays["cell_b"]) if "cell_A" in trace.arrays and "cell_b" in trace.arrays else None
     cov = trace.metadata.get("robot_cov")
@@ -172,45 +182,90 @@ def animation_scene(trace: Trace) -> tuple[plt.Figure, Callable[[int], None]]:
     if is_three_d(trace):
         mappable = plt.cm.ScalarMappable(norm=plt.Normalize(*height_range(trace)), cmap="viridis")
         fig.colorbar(mappable, ax=ax, label="height z [m]", location="bottom", shrink=0.8, pad=0.12, aspect=40)  # the legend is on the right
-    handles = animation_legend(trace, cells is not None, ellipse is not None, headings is not None, local_box is not None)
+    draw_workspace(ax, trace)
+    ax.set(xlabel="x [m]", ylabel="y [m]")
+    outside_legend(ax, animation_legend(trace, cells is not None, ellipse is not None, headings is not None, local_box is not None))
+    title = ax.set_title("", fontsize=9)
+    robots = [RobotArtists.add(ax, goals[i], radius, cells is not None, ellipse, headings is not None) for i in range(pos.shape[1])]
 
-    def update(k: int) -> None:
-        ax.clear()
-        draw_workspace(ax, trace)
+    def update(k: int) -> list:
         colours = robot_colours(trace, k) if is_three_d(trace) else robot_colours(trace)
         trail = pos[max(0, k - TRAIL_STEPS): k + 1]
-        for i in range(pos.shape[1]):
-            arrived = 0 <= arrival[i] <= k
-            if cells is not None and len(cells[0]) and not arrived:  # an arrived robot's cell only hides the others
-                step = min(k, len(cells[0]) - 1)
-                centre = estimates[min(step, len(estimates) - 1), i, :2] if estimates is not None and len(estimates) else pos[k, i, :2]
-                draw_cell(ax, cells[0][step, i], cells[1][step, i], clip, colours[i], centre, local_box)
-            ax.plot(trail[:, i, 0], trail[:, i, 1], color=colours[i], lw=0.6, alpha=0.6)
-            ax.add_patch(Circle(pos[k, i, :2], radius, color=colours[i], alpha=0.85))
-            if ellipse is not None and estimates is not None and len(estimates):
-                centre = estimates[min(k, len(estimates) - 1), i, :2]
-                ax.add_patch(Ellipse(centre, ellipse[0], ellipse[1], angle=ellipse[2], fill=False, ec=colours[i], ls="--", lw=0.6))
-            if headings is not None and np.isfinite(headings[k, i]):
-                draw_heading(ax, pos[k, i], float(headings[k, i]), radius)
-            ax.plot(*goals[i, :2], "x", color=colours[i])
-        ax.set(xlabel="x [m]", ylabel="y [m]")
-        ax.set_title(f"{run_title(trace)}" + (" (top view)" if is_three_d(trace) else "") + f"\nt = {k * dt:.1f} s", fontsize=9)
-        outside_legend(ax, handles)
+        for i, robot in enumerate(robots):
+            robot.colour(colours[i])
+            if robot.cell is not None:
+                robot.cell.set_visible(False)  # an arrived robot's cell only hides the others
+                if len(cells[0]) and not 0 <= arrival[i] <= k:
+                    step = min(k, len(cells[0]) - 1)
+                    centre = estimates[min(step, len(estimates) - 1), i, :2] if has_estimates else pos[k, i, :2]
+                    robot.shape_cell(cells[0][step, i], cells[1][step, i], clip, centre, local_box)
+            robot.trail.set_data(trail[:, i, 0], trail[:, i, 1])
+            robot.disc.set_center(pos[k, i, :2])
+            if robot.ellipse is not None:
+                robot.ellipse.set_visible(has_estimates)
+                if has_estimates:
+                    robot.ellipse.set_center(estimates[min(k, len(estimates) - 1), i, :2])
+            if robot.heading is not None:
+                robot.heading.set_visible(bool(np.isfinite(headings[k, i])))
+                if np.isfinite(headings[k, i]):
+                    point_heading(robot.heading, pos[k, i], float(headings[k, i]), radius)
+        title.set_text(f"{run_title(trace)}" + (" (top view)" if is_three_d(trace) else "") + f"\nt = {k * dt:.1f} s")
+        return [artist for robot in robots for artist in robot.in_drawing_order()] + [title]
 
     update(0)
     fit_canvas(fig)
     return fig, update
 
 
-def draw_cell(ax: plt.Axes, A: np.ndarray, b: np.ndarray, clip: np.ndarray, colour: Any, centre: np.ndarray,
-              local_box: float | None) -> None:
-    """One robot's cell ``{p : A p ≤ b}`` in its colour (a light fill, a solid edge), cut to
-    its local box ``centre ± local_box`` when given."""
-    polygon = cell_polygon(A, b, clip)
-    if local_box is not None and len(polygon) >= 3:
-        polygon = box_clip(polygon, centre, local_box)
-    if len(polygon) >= 3:
-        ax.add_patch(PolygonPatch(polygon, closed=True, fc=(*colour[:3], CELL_ALPHA), ec=colour, lw=0.8))
+@dataclass
+class RobotArtists:
+    """What a robot's animation frame shows, each artist made once and moved per frame."""
+
+    cell: PolygonPatch | None
+    trail: Line2D
+    disc: Circle
+    ellipse: Ellipse | None
+    heading: FancyArrow | None
+    goal: Line2D
+
+    @classmethod
+    def add(cls, ax: plt.Axes, goal: np.ndarray, radius: float, cell: bool, ellipse: tuple | None, heading: bool) -> "RobotArtists":
+        """The artists of one robot, added to ``ax`` in its drawing order (cell, trail,
+        disc, ellipse, heading, goal): a cell with a light fill and a solid edge, the
+        trail, the true disc, the dashed 3σ ellipse, the heading arrow, the goal ×."""
+        return cls(
+            ax.add_patch(PolygonPatch(np.zeros((3, 2)), closed=True, lw=0.8)) if cell else None,
+            ax.plot([], [], lw=0.6, alpha=0.6)[0],
+            ax.add_patch(Circle((0.0, 0.0), radius, alpha=0.85)),
+            ax.add_patch(Ellipse((0.0, 0.0), ellipse[0], ellipse[1], angle=ellipse[2], fill=False, ls="--", lw=0.6))
+            if ellipse is not None else None,
+            heading_arrow(ax, radius) if heading else None,
+            ax.plot(*goal[:2], "x")[0],
+        )
+
+    def in_drawing_order(self) -> list:
+        return [a for a in (self.cell, self.trail, self.disc, self.ellipse, self.heading, self.goal) if a is not None]
+
+    def colour(self, colour: Any) -> None:
+        """Every artist of the robot in ``colour`` (the heading stays black)."""
+        if self.cell is not None:
+            self.cell.set_facecolor((*colour[:3], CELL_ALPHA))
+            self.cell.set_edgecolor(colour)
+        self.trail.set_color(colour)
+        self.disc.set_color(colour)
+        if self.ellipse is not None:
+            self.ellipse.set_edgecolor(colour)
+        self.goal.set_color(colour)
+
+    def shape_cell(self, A: np.ndarray, b: np.ndarray, clip: np.ndarray, centre: np.ndarray, local_box: float | None) -> None:
+        """The cell ``{p : A p ≤ b}`` inside ``clip``, cut to its local box ``centre ±
+        local_box`` when given; hidden when that leaves less than a triangle."""
+        polygon = cell_polygon(A, b, clip)
+        if local_box is not None and len(polygon) >= 3:
+            polygon = box_clip(polygon, centre, local_box)
+        self.cell.set_visible(len(polygon) >= 3)
+        if len(polygon) >= 3:
+            self.cell.set_xy(polygon)
 
 
 CELL_ALPHA = 0.18

@@ -169,7 +169,7 @@ def animate_trace(trace: Trace, path: str | Path, fps: int = 6, max_frames: int 
     frames = frame_indices(len(pos), max_frames)
     update(frames[0])
     fit_canvas(fig)  # to the area, the legend and the first frame's title
-    return save_gif(fig, update, frames, path, fps=fps)
+    return save_gif(fig, update, frames, path, fps=fps, blit=True)
 
 
 def _visited_until(trace: Trace):
