@@ -8,6 +8,7 @@ Anything a user can get wrong ends as one line on stderr and exit status 2.
 
 from __future__ import annotations
 
+import functools
 import os
 import sys
 import warnings
@@ -15,7 +16,9 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Iterator, Optional
 
+import click
 import typer
+import typer.main
 from typer.core import TyperCommand
 
 from ..core.budget import MEMORY_BUDGET_VARIABLE, parse_size
@@ -507,12 +510,21 @@ def option_value(argv: list[str], names: list[str]) -> str | None:
     return None
 
 
+@functools.cache
+def click_command(commands: int, groups: int) -> click.Command:
+    """The click command typer builds from :data:`app` and its ``commands`` and ``groups``,
+    built once per process (building reads every command's signature and annotations,
+    tens of milliseconds, which a program calling :func:`main` again need not pay)."""
+    return typer.main.get_command(app)
+
+
 def main(argv: list[str] | None = None) -> None:
-    """Entry point: run the CLI, turning robofleet errors into one line and exit status 2."""
+    """Entry point: run the CLI, turning robofleet errors into one line and exit status 2.
+    Unexpected exceptions propagate with Python's own traceback."""
     warnings.showwarning = show_warning
     budget = os.environ.get(MEMORY_BUDGET_VARIABLE)
     try:
-        code = app(args=argv, standalone_mode=False)
+        code = click_command(len(app.registered_commands), len(app.registered_groups))(args=argv, standalone_mode=False)
     except Stopped as exc:
         typer.echo(str(exc), err=True)
         sys.exit(INTERRUPTED)
