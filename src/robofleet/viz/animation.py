@@ -143,7 +143,7 @@ def fit_canvas(fig: plt.Figure, pad: float = 0.1) -> plt.Figure:
     An equal-aspect axes then fills the canvas but for its labels, title and legend: the
     canvas takes the workspace's aspect (plus the legend's column), with no blank bands,
     and no legend reaches past an edge. Animations fit their first frame before rendering."""
-    fig.canvas.draw()
+    fig.draw_without_rendering()  # the layout of a draw (ticks, legends, aspect), no pixels
     box = fig.get_tightbbox(fig.canvas.get_renderer())  # inches
     width, height = fig.get_size_inches()
     new_width, new_height = box.width + 2 * pad, box.height + 2 * pad
