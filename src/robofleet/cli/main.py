@@ -16,10 +16,9 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Iterator, Optional
 
-import click
 import typer
 import typer.main
-from typer.core import TyperCommand
+from typer.core import TyperCommand, TyperGroup
 
 from ..core.budget import MEMORY_BUDGET_VARIABLE, parse_size
 from ..core.errors import ConfigError, Interrupted, RobofleetError, one_line, short_repr
@@ -511,7 +510,7 @@ def option_value(argv: list[str], names: list[str]) -> str | None:
 
 
 @functools.cache
-def click_command(commands: int, groups: int) -> click.Command:
+def click_command(commands: int, groups: int) -> TyperGroup:
     """The click command typer builds from :data:`app` and its ``commands`` and ``groups``,
     built once per process (building reads every command's signature and annotations,
     tens of milliseconds, which a program calling :func:`main` again need not pay)."""
