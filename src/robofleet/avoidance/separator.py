@@ -251,7 +251,16 @@ def shared_separator_row(xi, yi, xj, yj, mode, solve):
 
 
 def solve_t(diff: np.ndarray, ci: np.ndarray, cj: np.ndarray) -> np.ndarray:
-    """Root ``t ∈ (0, 1)`` of Eq. (50) for every pair (Illinois iteration on the bracket)."""
+    """Root ``t ∈ (0, 1)`` of Eq. (50) for every pair (Illinois iteration on the bracket);
+    in the plane, :func:`solve_t_2d` (compiled, the same operations and bits)."""
+    if diff.shape[-1] == 2:
+        return solve_t_2d(np.ascontiguousarray(diff, dtype=np.float64), np.ascontiguousarray(ci, dtype=np.float64),
+                          np.ascontiguousarray(cj, dtype=np.float64))
+    return solve_t_vectorized(diff, ci, cj)
+
+
+def solve_t_vectorized(diff: np.ndarray, ci: np.ndarray, cj: np.ndarray) -> np.ndarray:
+    """:func:`solve_t` on all pairs at once, any dimension (numpy)."""
     k = len(diff)
     t = np.full(k, 0.5)
     f_mid = _residual(t, diff, ci, cj)
@@ -282,6 +291,64 @@ def solve_t(diff: np.ndarray, ci: np.ndarray, cj: np.ndarray) -> np.ndarray:
         done = (hi[idx] - lo[idx] < _TOL_T) | (fx == 0)
         idx = idx[~done]
     return t
+
+
+@numba.njit(cache=True, error_model="numpy")
+def solve_t_2d(diff, ci, cj):
+    """:func:`solve_t` for 2 × 2 covariances, pair by pair: every operation of the
+    vectorized form (:func:`_residual`, :func:`_scale`, the Illinois update) in its order,
+    so the roots are the same bits (a pair's iterations never depend on another pair)."""
+    t = np.full(len(diff), 0.5)
+    for r in range(len(diff)):
+        f_mid = _residual_2d(0.5, diff[r], ci[r], cj[r])
+        a0, a1 = _solve_2d(0.5 * (ci[r, 0, 0] + cj[r, 0, 0]), 0.5 * (ci[r, 0, 1] + cj[r, 0, 1]),
+                           0.5 * (ci[r, 1, 0] + cj[r, 1, 0]), 0.5 * (ci[r, 1, 1] + cj[r, 1, 1]), diff[r, 0], diff[r, 1])
+        if not abs(f_mid) > 1e-14 * (1.0 + (_quad_2d(a0, a1, ci[r]) + _quad_2d(a0, a1, cj[r]))):
+            continue
+        lo, hi = 0.0, 1.0
+        f_lo, f_hi = _residual_2d(lo, diff[r], ci[r], cj[r]), _residual_2d(hi, diff[r], ci[r], cj[r])
+        side = 0  # Illinois: which end was kept last time
+        for _ in range(_MAX_ITER):
+            x = (lo * f_hi - hi * f_lo) / (f_hi - f_lo)
+            if not (math.isfinite(x) and x > lo and x < hi):
+                x = 0.5 * (lo + hi)
+            fx = _residual_2d(x, diff[r], ci[r], cj[r])
+            if fx < 0:  # replace the end with the same sign; halve the kept end's value if kept twice
+                lo = x
+                if side == 1:
+                    f_hi = 0.5 * f_hi
+                f_lo, side = fx, 1
+            else:
+                hi = x
+                if side == -1:
+                    f_lo = 0.5 * f_lo
+                f_hi, side = fx, -1
+            t[r] = x
+            if hi - lo < _TOL_T or fx == 0:
+                break
+    return t
+
+
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def _residual_2d(t, diff, ci, cj):
+    """:func:`_residual` of one pair."""
+    s = 1.0 - t
+    a0, a1 = _solve_2d(t * ci[0, 0] + s * cj[0, 0], t * ci[0, 1] + s * cj[0, 1], t * ci[1, 0] + s * cj[1, 0],
+                       t * ci[1, 1] + s * cj[1, 1], diff[0], diff[1])
+    return t * t * _quad_2d(a0, a1, ci) - s * s * _quad_2d(a0, a1, cj)
+
+
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def _solve_2d(m00, m01, m10, m11, v0, v1):
+    """:func:`_solve` of one 2 × 2 system."""
+    det = m00 * m11 - m01 * m10
+    return (m11 * v0 - m01 * v1) / det, (m00 * v1 - m10 * v0) / det
+
+
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def _quad_2d(a0, a1, cov):
+    """:func:`_quad` of one vector."""
+    return a0 * (cov[0, 0] * a0 + 2 * cov[0, 1] * a1) + cov[1, 1] * (a1 * a1)
 
 
 def _residual(t, diff, ci, cj):
