@@ -4,8 +4,8 @@ both projections of the right-hand stage.
 
 Cells: three or more rows through one vertex with the target projecting onto it, the
 target on a vertex, repeated, parallel and antiparallel rows, empty strips, cells of
-1e-10 m, and B-UAVC-like cells of a robot among neighbours 1,000 m from the origin with
-targets 2,000 m away (the circle swap's geometry)."""
+1e-10 m, rows through the origin, and B-UAVC-like cells of a robot among neighbours
+1,000 m from the origin with targets 2,000 m away (the circle swap's geometry)."""
 
 from __future__ import annotations
 
@@ -27,8 +27,9 @@ def _unit(rng, n):
 
 
 def concurrent_cell(rng):
-    """Three to five rows through one vertex (the rest random), the target beyond it."""
-    vertex = rng.normal(size=2) * 10.0 ** rng.uniform(-2, 3)
+    """Three to five rows through one vertex (the rest random), the target beyond it; a
+    quarter of the vertices at the origin (zero offsets: the signs of zeros count)."""
+    vertex = rng.normal(size=2) * 10.0 ** rng.uniform(-2, 3) * (rng.random() >= 0.25)
     through = int(rng.integers(3, 6))
     A, b = _unit(rng, ROWS), rng.uniform(0.1, 2.0, ROWS)
     A[:through] = _unit(rng, through)
@@ -91,7 +92,9 @@ def degenerate_cells(seed: int, n: int):
 
 def assert_exact(proj, goals, cells, robots):
     """Each robot's result equals the enumeration bit for bit and is the closest point of
-    its cell (a brute-force optimum) up to the tolerance."""
+    its cell (a brute-force optimum) up to the tolerance: both accept points within 1e-9
+    of a row, which near rows meeting at a sharp angle, or at one point, moves the closest
+    accepted point by a few times that (1e-8 allowed, relative to the scale)."""
     A_, b_, valid_ = cells.A.tolist(), cells.b.tolist(), cells.valid.tolist()
     for i in robots:
         x0, x1, k0, k1, empty = enumeration(float(goals[i, 0]), float(goals[i, 1]), A_[i], b_[i], valid_[i])
@@ -102,7 +105,7 @@ def assert_exact(proj, goals, cells, robots):
         if best is None or empty:
             continue
         scale = 1.0 + np.linalg.norm(best - goals[i]) + np.abs(best).max()
-        assert np.linalg.norm(proj.point[i] - goals[i]) <= np.linalg.norm(best - goals[i]) + 1e-9 * scale, i
+        assert np.linalg.norm(proj.point[i] - goals[i]) <= np.linalg.norm(best - goals[i]) + 1e-8 * scale, i
         assert np.all(A @ proj.point[i] <= b + 1e-8 * scale), i
 
 
