@@ -15,6 +15,7 @@ from robofleet.avoidance.cell import (
     _obstacle_rows,
     _pad,
     _robot_rows,
+    _shared_mode,
     _wall_rows,
     build_cells,
     grid_fits,
@@ -27,6 +28,7 @@ from robofleet.avoidance.neighbours import (
 )
 from robofleet.avoidance.obstacles import ObstacleSet, wall_planes
 from robofleet.avoidance.projection import project_onto_cells
+from robofleet.avoidance.separator import separator_mode
 from robofleet.core.errors import ConfigError
 
 
@@ -203,6 +205,19 @@ def test_grid_fits_is_the_extent_test_on_the_first_axis(seed):
         assert grid_fits(p, box) == expected
         seen.add(expected)
     assert seen == {True, False}
+
+
+def test_shared_separator_mode_is_remembered_per_covariance():
+    """The prepared shared Σ is the one of the Σ asked for, whatever was asked before:
+    diagonal, general, zero and negative-zero entries, one pair or several."""
+    rng = np.random.default_rng(22)
+    covs = [np.diag([0.01, 0.04]), np.array([[0.02, 0.005], [0.005, 0.03]]), np.zeros((2, 2)), np.diag([-0.0, 0.0]),
+            np.diag([0.01, 0.01])]
+    for _ in range(60):
+        cov, pairs = covs[rng.integers(len(covs))], int(rng.integers(0, 4))
+        mode, solve = _shared_mode(cov, pairs)
+        expected_mode, expected_solve = separator_mode(cov, pairs=pairs)
+        assert mode == expected_mode and solve.tobytes() == expected_solve.tobytes()
 
 
 def test_reused_arrays_are_never_ones_still_referenced():

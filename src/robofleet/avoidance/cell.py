@@ -65,6 +65,7 @@ reference the tests compare the batch against: the same rows.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 from enum import IntEnum
 
@@ -244,7 +245,7 @@ def _shared_cells_2d(p, cov, radius, quantile, geometry: CellGeometry, obstacles
     wall_spread = quantile * np.sqrt(np.maximum(_quad_2d(wall_a, cov), 0.0))  # β − r_s of each wall row, as buffer()
     o_start, o_a, o_b, o_src = _by_owner(n, obstacles)
     count, walls, near = _gather(grid, wall_a, wall_b, n, use_parallel(n))
-    mode, solve = separator_mode(np.asarray(cov, dtype=np.float64), pairs=int(count.sum()) // 2)
+    mode, solve = _shared_mode(np.asarray(cov, dtype=np.float64), int(count.sum()) // 2)
     m = max(int((count + np.diff(o_start) + walls).max(initial=0)), 1)
     A, b = reused_array("cell.A", (n, m, 2), np.float64), reused_array("cell.b", (n, m), np.float64)
     valid, kinds = reused_array("cell.valid", (n, m), np.bool_), reused_array("cell.kind", (n, m), np.int8)
@@ -257,6 +258,19 @@ def _shared_cells_2d(p, cov, radius, quantile, geometry: CellGeometry, obstacles
     else:
         _fill_rows(0, n, *args)
     return Cells(A, b, valid, kinds, src)
+
+
+def _shared_mode(cov: np.ndarray, pairs: int) -> tuple[int, np.ndarray]:
+    """:func:`~.separator.separator_mode` of the shared Σ, remembered for the same Σ (and
+    whether there is one pair): Σ is fixed in most runs, and preparing it is numpy work on
+    a 2 × 2 matrix every step (a copy of the remembered array is returned)."""
+    mode, solve = _mode_of(cov.tobytes(), pairs == 1)
+    return mode, solve.copy()
+
+
+@functools.lru_cache(maxsize=16)
+def _mode_of(cov_bytes: bytes, one_pair: bool) -> tuple[int, np.ndarray]:
+    return separator_mode(np.frombuffer(cov_bytes, dtype=np.float64).reshape(2, 2), pairs=1 if one_pair else 2)
 
 
 def _quad_2d(normals: np.ndarray, cov: np.ndarray) -> np.ndarray:

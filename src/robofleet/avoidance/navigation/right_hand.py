@@ -32,7 +32,7 @@ import numpy as np
 
 from ..cell import Cells, Kind, face_excess
 from ..kernels import row_products, use_parallel
-from ..projection import Projection, check_projection_inputs, project_onto_cells, project_point, project_rows_into, projection_scratch
+from ..projection import EVERY_ROBOT, Projection, check_projection_inputs, project_onto_cells, project_rows_into, project_span
 from .params import RightHandParams
 
 
@@ -160,10 +160,8 @@ def _projected_parallel(targets, estimates, A, b, valid, kind, driving, near, po
 def _projected_range(lo, hi, targets, estimates, A, b, valid, kind, driving, near, point, empty, active, turn):
     """Robots ``lo … hi − 1``: each target's projection, and whether the robot turns
     (driving, a non-empty cell, blocked)."""
-    slack, violated, rows = projection_scratch(A.shape[1])
+    project_span(lo, hi, EVERY_ROBOT, targets, A, b, valid, point, empty, active, False, True)
     for i in range(lo, hi):
-        point[i, 0], point[i, 1], active[i, 0], active[i, 1], empty[i] = project_point(targets[i, 0], targets[i, 1], i, A, b, valid, slack,
-                                                                                       violated, rows)
         turn[i] = driving[i] and not empty[i] and _blocked(i, estimates, active, A, b, kind, near)
 
 
