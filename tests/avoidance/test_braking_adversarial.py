@@ -154,18 +154,21 @@ class EdgeSet:
     the distance from points to the nearest polygon (0 inside)."""
 
     def __init__(self, polygons):
-        self.start = polygons[:, None]  # (N, 1, O, V, 2)
-        self.edge = np.roll(polygons, -1, axis=2)[:, None] - self.start
-        self.len2 = np.sum(self.edge * self.edge, -1)
+        start = polygons[:, None]  # (N, 1, O, V, 2)
+        edge = np.roll(polygons, -1, axis=2)[:, None] - start
+        self.sx, self.sy, self.ex, self.ey = start[..., 0], start[..., 1], edge[..., 0], edge[..., 1]  # (N, 1, O, V) each
+        self.len2 = self.ex * self.ex + self.ey * self.ey
         self.safe_len2 = np.where(self.len2 > 0, self.len2, 1.0)
 
     def distance(self, points):
-        """``(N, S)`` for points ``(N, S, 2)``."""
-        rel = points[:, :, None, None] - self.start  # (N, S, O, V, 2)
-        t = np.clip(np.sum(rel * self.edge, -1) / self.safe_len2, 0.0, 1.0)
-        dist = np.sqrt(np.min(np.sum((t[..., None] * self.edge - rel) ** 2, -1), -1))  # (N, S, O)
-        cross = self.edge[..., 0] * rel[..., 1] - self.edge[..., 1] * rel[..., 0]
-        inside = np.all((cross >= 0) | (self.len2 == 0), axis=-1)
+        """``(N, S)`` for points ``(N, S, 2)`` (coordinates apart: no reduction over a
+        last axis of two)."""
+        rx = points[:, :, None, None, 0] - self.sx  # (N, S, O, V)
+        ry = points[:, :, None, None, 1] - self.sy
+        t = np.clip((rx * self.ex + ry * self.ey) / self.safe_len2, 0.0, 1.0)
+        dx, dy = t * self.ex - rx, t * self.ey - ry
+        dist = np.sqrt(np.min(dx * dx + dy * dy, -1))  # (N, S, O)
+        inside = np.all((self.ex * ry - self.ey * rx >= 0) | (self.len2 == 0), axis=-1)
         return np.where(inside, 0.0, dist).min(-1)
 
 
