@@ -116,8 +116,11 @@ def test_the_trace_carries_what_the_figures_need_and_viz_imports_only_core():
     assert relative <= {"..core.trace", ".animation"}, relative
 
 
-def test_conformance_of_every_shipped_flocking_scenario():
-    assert len(check_family("flocking")) == 13
+def test_check_family_checks_every_shipped_flocking_scenario():
+    """The family-level entry point names and checks every shipped flocking scenario (each
+    one's full check, figures included, is ``tests/conformance/test_scenarios.py``)."""
+    checked = check_family("flocking", steps=2, figures=False)
+    assert checked == [e.name for e in robofleet.scenarios.list() if e.family == "flocking"] and len(checked) == 13
 
 
 def test_conformance_of_a_file_pattern_scenario(tmp_path):
