@@ -77,7 +77,12 @@ def test_closest_point_on_yawed_box_matches_brute_force(seed):
     pts = rng.normal(size=(5, 3)) * 3
     cp = closest_points_on_boxes(pts, centre, axes)[:, 0]
     for k in range(5):
-        r = minimize(lambda z: np.sum((centre[0] + axes[0] @ z - pts[k]) ** 2), np.zeros(3), bounds=[(-1, 1)] * 3, method="L-BFGS-B", options={"ftol": 1e-15, "gtol": 1e-12})
+        def squared_distance(z):  # and its gradient
+            gap = centre[0] + axes[0] @ z - pts[k]
+            return np.sum(gap**2), 2 * axes[0].T @ gap
+
+        r = minimize(squared_distance, np.zeros(3), jac=True, bounds=[(-1, 1)] * 3, method="L-BFGS-B",
+                     options={"ftol": 1e-15, "gtol": 1e-12})
         assert np.linalg.norm(cp[k] - pts[k]) <= np.sqrt(r.fun) + 1e-6
 
 
