@@ -97,20 +97,15 @@ def pytest_collection_modifyitems(config, items):
     items.sort(key=lambda item: (item.get_closest_marker("slow") is None, item.get_closest_marker("extended") is None))
 
 
-FIRST_COMPILES = "ROBOFLEET_TEST_FIRST_COMPILES"
-"""Environment variable naming the folder where the warm-up recorded, per family, the
-kernels a first run in an empty cache compiled (set only when the cache was empty)."""
-
-
 @pytest.hookimpl(tryfirst=True)
 def pytest_sessionstart(session):
     """With test workers (``-n``), fill numba's cache before they start, when it is empty
     (:mod:`kernel_cache`): each kernel is then compiled once, not once per worker. The
-    workers, started after this hook, inherit :data:`FIRST_COMPILES`."""
+    workers, started after this hook, inherit ``kernel_cache.FIRST_COMPILES``."""
     if session.config.pluginmanager.has_plugin("dsession"):
         import kernel_cache
 
         record = Path(tempfile.mkdtemp(prefix="robofleet-first-compiles-"))
         session.config.add_cleanup(lambda: shutil.rmtree(record, ignore_errors=True))
         if kernel_cache.warm_up(record):
-            os.environ[FIRST_COMPILES] = str(record)
+            os.environ[kernel_cache.FIRST_COMPILES] = str(record)

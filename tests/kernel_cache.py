@@ -68,6 +68,20 @@ def is_warm() -> bool:
     return True
 
 
+FIRST_COMPILES = "ROBOFLEET_TEST_FIRST_COMPILES"
+"""Environment variable naming the folder where the warm-up recorded, per family, the
+kernels a first run in an empty cache compiled (set by ``tests/conftest.py`` only when the
+cache was empty)."""
+
+
+def recorded_first_compiles(family: str) -> dict[str, int] | None:
+    """What the warm-up's first runs of ``family`` compiled in the empty cache (kernel →
+    compiles), or ``None`` when this session's warm-up did not start from an empty cache."""
+    folder = os.environ.get(FIRST_COMPILES)
+    record = Path(folder) / f"{family}.json" if folder else None
+    return json.loads(record.read_text(encoding="utf-8")) if record is not None and record.is_file() else None
+
+
 def is_empty() -> bool:
     """Whether no kernel module has a cache index yet (a fresh environment)."""
     return not any(any(cache_directory(source).glob(f"{source.stem}.*.nbi")) for source in kernel_sources())

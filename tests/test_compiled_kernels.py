@@ -4,13 +4,12 @@ on the progress line."""
 from __future__ import annotations
 
 import importlib
-import json
 import os
 import pkgutil
 import subprocess
 import sys
-from pathlib import Path
 
+import kernel_cache
 import numba
 import pytest
 from numba.core import event
@@ -70,10 +69,9 @@ def test_a_second_run_in_the_same_environment_compiles_nothing(tmp_path):
     suite's warm-up filled the cache from empty (it ran the same short run among the
     shipped scenarios, ``tests/kernel_cache.py``), it was the first process; else the test
     starts both in a new cache folder."""
-    recorded = os.environ.get("ROBOFLEET_TEST_FIRST_COMPILES")
-    if recorded and (Path(recorded) / "avoidance.json").is_file():
-        first = sum(json.loads((Path(recorded) / "avoidance.json").read_text(encoding="utf-8")).values())
-        second = compiles_of_a_fresh_process(dict(os.environ))
+    recorded = kernel_cache.recorded_first_compiles("avoidance")
+    if recorded is not None:
+        first, second = sum(recorded.values()), compiles_of_a_fresh_process(dict(os.environ))
     else:
         env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path)}
         first, second = compiles_of_a_fresh_process(env), compiles_of_a_fresh_process(env)

@@ -6,12 +6,12 @@ checked; otherwise the test compiles the search kernels itself, in an empty cach
 
 from __future__ import annotations
 
-import json
 import os
 import subprocess
 import sys
 from pathlib import Path
 
+import kernel_cache
 import pytest
 
 COMPILES_PER_KERNEL = """
@@ -35,9 +35,9 @@ def first_search_compiles(tmp_path: Path) -> dict[str, int]:
     """How often each robofleet kernel was compiled by first search runs in an empty cache:
     the warm-up's record of every shipped search scenario when there is one, else a run of
     ``search/fig7`` in the empty cache ``tmp_path``."""
-    recorded = os.environ.get("ROBOFLEET_TEST_FIRST_COMPILES")
-    if recorded and (Path(recorded) / "search.json").is_file():
-        return json.loads((Path(recorded) / "search.json").read_text(encoding="utf-8"))
+    recorded = kernel_cache.recorded_first_compiles("search")
+    if recorded is not None:
+        return recorded
     env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path)}
     result = subprocess.run([sys.executable, "-c", COMPILES_PER_KERNEL], env=env, capture_output=True, text=True,
                             timeout=900)
