@@ -186,6 +186,11 @@ BUILT_PROBLEMS_PER_THREAD = 8
 
 _built_problems = threading.local()
 
+CASADI_BUILDING = threading.Lock()
+"""Held while casadi builds symbolic expressions and functions: its symbolic graph is not
+safe to build from two threads at once (a process aborts), so controllers built in
+threads side by side build one at a time."""
+
 
 @dataclass(frozen=True)
 class BuiltProblem:
@@ -196,7 +201,6 @@ class BuiltProblem:
     problem: dict
     nz: int
     ng: int
-    n_eq: int
     lbg: np.ndarray
     ubg: np.ndarray
     lbz: np.ndarray
@@ -217,7 +221,8 @@ def built_problem(model: ModelAdapter, config: MPCConfig, key: tuple) -> BuiltPr
     full_key = (key, config)
     built = kept.pop(full_key, None)
     if built is None:
-        built = build_problem(model, config)
+        with CASADI_BUILDING:
+            built = build_problem(model, config)
         while len(kept) >= BUILT_PROBLEMS_PER_THREAD:
             kept.pop(next(iter(kept)))
     kept[full_key] = built  # the most recently used last
@@ -259,7 +264,7 @@ def build_problem(model: ModelAdapter, config: MPCConfig) -> BuiltProblem:
     for k in range(N):
         states.append(m.step(states[-1], us[:, k]))
     return BuiltProblem(
-        {"x": z, "p": P, "f": cost, "g": g}, z.numel(), ng, n_eq,
+        {"x": z, "p": P, "f": cost, "g": g}, z.numel(), ng,
         read_only(np.concatenate([np.zeros(n_eq), np.full(ng - n_eq, -np.inf)])), read_only(np.zeros(ng)),
         read_only(np.concatenate([np.full(m.nx * (N + 1), -np.inf), np.tile(m.u_lo, N)])),
         read_only(np.concatenate([np.full(m.nx * (N + 1), np.inf), np.tile(m.u_hi, N)])),
@@ -311,8 +316,8 @@ class BuavcMPC:
         self.n_robots = n_robots
         self._build()
         N, m = config.horizon, self.model
-        self._warm = np.full((n_robots, self._nz), np.nan)
-        self._lam_g = np.zeros((n_robots, self._ng))
+        self._warm = np.full((n_robots, self._problem.nz), np.nan)
+        self._lam_g = np.zeros((n_robots, self._problem.ng))
         self.rotation = GoalRotation(n_robots, config.deadlock_steps, config.deadlock_progress, config.recover_steps)
         self.infeasible = np.zeros(n_robots, np.int64)
         del N, m
@@ -327,27 +332,30 @@ class BuavcMPC:
         """The problem of this model and configuration (:func:`built_problem`, shared by
         every controller built alike in this thread) and this controller's own QP/NLP
         solver: qpOASES hot-starts from its previous call, so a solver is never shared."""
-        import casadi as ca  # imported here: loading a scenario must not pay for casadi
-
         built = built_problem(self.model, self.config, self._model_key)
         if built.sqp is not None:
             import_daqp()  # a kept problem checks for its QP solver as a fresh build does
-        self._nz, self._ng, self._n_eq = built.nz, built.ng, built.n_eq
-        self._lbg, self._ubg, self._lbz, self._ubz = built.lbg, built.ubg, built.lbz, built.ubz
-        self._rollout, self._step, self._sqp = built.rollout, built.step, built.sqp
+        self._problem = built
         self._first_solve = True
-        self._solver = None
+        with CASADI_BUILDING:
+            self._solver = self._own_solver(built)
+
+    def _own_solver(self, built: BuiltProblem):
+        """This controller's QP (linear models) or IPOPT NLP solver, ``None`` on the ``'rti'`` path."""
+        import casadi as ca  # imported here: loading a scenario must not pay for casadi
+
         if self.model.linear:
             with quiet_stdout():  # qpOASES prints its licence banner on construction
-                self._solver = ca.qpsol("buavc_mpc", QP_SOLVER, built.problem, QP_OPTIONS[QP_SOLVER])
-        elif self.config.solver == "ipopt":
-            self._solver = ca.nlpsol("buavc_mpc", "ipopt", built.problem, {
+                return ca.qpsol("buavc_mpc", QP_SOLVER, built.problem, QP_OPTIONS[QP_SOLVER])
+        if self.config.solver == "ipopt":
+            return ca.nlpsol("buavc_mpc", "ipopt", built.problem, {
                 "print_time": False, "error_on_fail": False,
                 "ipopt": {"print_level": 0, "sb": "yes", "max_iter": self.config.max_iter, "tol": 1e-6,
                           "acceptable_tol": 1e-4, "acceptable_iter": 2, "warm_start_init_point": "yes",
                           "mu_init": 1e-3, "mu_strategy": "adaptive", "warm_start_bound_push": 1e-9,
                           "warm_start_mult_bound_push": 1e-9},
             })
+        return None
 
     # ------------------------------------------------------------------ per-step solve
     def cell_parameters(self, A: np.ndarray, b: np.ndarray, valid: np.ndarray, position: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -375,7 +383,7 @@ class BuavcMPC:
         if self._solver is None:
             return self._plan_rti(robot, state, goal, A, b, z0)
         result = self._plan_exact(robot, state, goal, A, b, z0)
-        if result.in_cell or self._sqp is None:
+        if result.in_cell or self._problem.sqp is None:
             return result
         return self._plan_rti(robot, state, goal, A, b, z0)  # IPOPT found no in-cell plan: the SQP as recovery
 
@@ -386,7 +394,7 @@ class BuavcMPC:
         m, N = self.model, self.config.horizon
         p = np.concatenate([state, goal, A.T.ravel(), b - CELL_MARGIN])  # casadi reshape is column-major
         with quiet_stdout() if self._first_solve else contextlib.nullcontext():  # and on first use
-            sol = self._solver(x0=z0, p=p, lbx=self._lbz, ubx=self._ubz, lbg=self._lbg, ubg=self._ubg, lam_g0=self._lam_g[robot])
+            sol = self._solver(x0=z0, p=p, lbx=self._problem.lbz, ubx=self._problem.ubz, lbg=self._problem.lbg, ubg=self._problem.ubg, lam_g0=self._lam_g[robot])
         self._first_solve = False
         z = np.asarray(sol["x"]).ravel()
         U = z[m.nx * (N + 1) :].reshape(N, m.nu)
@@ -427,7 +435,7 @@ class BuavcMPC:
         """:meth:`~.rti.CondensedSQP.solve` with the noise band, shrunk linearly to 0 within one
         plan's reach of the goal (so that a goal near a face stays reachable)."""
         band = self.band * min(1.0, float(np.linalg.norm(goal - state[: self.model.dim])) / self.reach)
-        return self._sqp.solve(state, goal, A, b, reference, margin=CELL_MARGIN, tolerance=_CELL_TOL, band=band)
+        return self._problem.sqp.solve(state, goal, A, b, reference, margin=CELL_MARGIN, tolerance=_CELL_TOL, band=band)
 
     def fallback_inputs(self, state: np.ndarray) -> np.ndarray:
         """Inputs ``(N, nu)`` of the model's safe fallback applied in closed loop from ``state``
@@ -436,7 +444,7 @@ class BuavcMPC:
         U = np.empty((self.config.horizon, m.nu))
         for k in range(self.config.horizon):
             U[k] = m.fallback(x[None])[0]
-            x = np.asarray(self._step(x, U[k])).ravel()
+            x = np.asarray(self._problem.step(x, U[k])).ravel()
         return U
 
     def rollout(self, state: np.ndarray, U: np.ndarray) -> np.ndarray:
@@ -444,7 +452,7 @@ class BuavcMPC:
         model's discrete step (the simulator's equations, compiled once): a plan is accepted
         only if these positions lie in the cell (a converged solve, or an unconverged one
         whose inputs are nevertheless safe)."""
-        return np.asarray(self._rollout(state, U.T)).T
+        return np.asarray(self._problem.rollout(state, U.T)).T
 
     def _initial_guess(self, robot: int, state: np.ndarray) -> np.ndarray:
         """The previous plan shifted by one step (first solve: hold the current state, zero input)."""

@@ -51,14 +51,19 @@ def points_in_convex_polygon(points: np.ndarray, vertices: np.ndarray) -> np.nda
 
 def points_in_polygon(points: np.ndarray, vertices: np.ndarray) -> np.ndarray:
     """Boolean mask of points strictly inside a simple polygon (even-odd rule), any winding."""
+    return (np.count_nonzero(edge_crossings(points, *polygon_edges(vertices)), axis=-1) % 2) == 1
+
+
+def edge_crossings(points: np.ndarray, start: np.ndarray, end: np.ndarray) -> np.ndarray:
+    """``(..., E)``: whether the ray from each point ``(..., 2)`` towards +x crosses each
+    edge ``start → end`` ``(E, 2)`` (the even-odd rule's count, half-open in y)."""
     p = np.asarray(points, dtype=float)
     x, y = p[..., 0, None], p[..., 1, None]
-    start, end = polygon_edges(vertices)
     y0, y1 = start[:, 1], end[:, 1]
     crosses = (y0 > y) != (y1 > y)
     with np.errstate(divide="ignore", invalid="ignore"):
         x_at = start[:, 0] + (y - y0) * (end[:, 0] - start[:, 0]) / (y1 - y0)
-    return (np.count_nonzero(crosses & (x < x_at), axis=-1) % 2) == 1
+    return crosses & (x < x_at)
 
 
 def polygon_distance(points: np.ndarray, vertices: np.ndarray) -> np.ndarray:
@@ -80,18 +85,13 @@ class PolygonEdges:
 
     def distance(self, points: np.ndarray, lo: int, hi: int) -> np.ndarray:
         """Distance from points ``(..., 2)`` to the nearest of polygons ``lo`` to ``hi − 1``
-        (0 inside one): per polygon what :func:`polygon_distance` gives, elementwise the
-        same operations (the segment distances, the even-odd crossings)."""
+        (0 inside one): per polygon what :func:`polygon_distance` gives, from the same
+        segment distances and :func:`edge_crossings`."""
         first, last = self.offsets[lo], self.offsets[hi]
         start, end = self.start[first:last], self.end[first:last]
         groups = self.offsets[lo:hi] - first
         boundary = np.minimum.reduceat(point_segment_distance(points, start, end), groups, axis=-1)
-        p = np.asarray(points, dtype=float)
-        x, y = p[..., 0, None], p[..., 1, None]
-        y0, y1 = start[:, 1], end[:, 1]
-        with np.errstate(divide="ignore", invalid="ignore"):
-            x_at = start[:, 0] + (y - y0) * (end[:, 0] - start[:, 0]) / (y1 - y0)
-        crossings = np.add.reduceat(((y0 > y) != (y1 > y)) & (x < x_at), groups, axis=-1)
+        crossings = np.add.reduceat(edge_crossings(points, start, end), groups, axis=-1)
         return np.where(crossings % 2 == 1, 0.0, boundary).min(axis=-1)
 
 
