@@ -6,13 +6,13 @@ STAMP  := $(VENV)/.installed
 
 .PHONY: demo check test bench docs clean install
 
-# uv installs from its cache in parallel; every module is byte-compiled once here, so that no
-# process (test workers, the command lines the tests start) compiles the sources again
+# uv installs from its cache in parallel and compiles nothing: Python byte-compiles a module
+# the first time a process imports it, as on a user's machine, and later processes read the
+# compiled file (the test suite imports about a tenth of the environment's modules)
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --disable-pip-version-check uv
-	$(BIN)/uv pip install --quiet --python $(BIN)/python --compile-bytecode -e ".[all]"
-	$(BIN)/python -m compileall -q src
+	$(BIN)/uv pip install --quiet --python $(BIN)/python -e ".[all]"
 	touch $(STAMP)
 
 install: $(STAMP)

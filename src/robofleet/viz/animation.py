@@ -13,6 +13,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.lines import Line2D
+from matplotlib.text import Text
 from matplotlib.transforms import blended_transform_factory
 from PIL import Image
 
@@ -119,6 +120,27 @@ AXES_INCHES = 5.0
 """The longer side of the axes that shows a run's workspace, in inches."""
 MIN_AXES_INCHES = 1.5
 """The shorter side of those axes at least (a corridor-like workspace stays readable)."""
+
+
+class FrameTitle:
+    """An animation's two-line title: a heading that stays (the run), drawn once with the
+    background, over a line that changes every frame (time, counts).
+
+    The heading is the axes title with an empty second line; the changing line is a text
+    of its own at that second line's baseline, centred as the title's lines are, so a
+    frame looks as with the whole title redrawn, while blitting redraws only the short line.
+    """
+
+    def __init__(self, ax: plt.Axes, heading: str, fontsize: float = 9):
+        self.title = ax.set_title(f"{heading}\n ", fontsize=fontsize)
+        self.line = ax.text(*self.title.get_position(), "", fontsize=fontsize, ha="center", va="baseline",
+                            transform=self.title.get_transform())
+
+    def show(self, text: str) -> Text:
+        """Set the changing line to ``text`` (at the title's current place); return its artist."""
+        self.line.set_position(self.title.get_position())
+        self.line.set_text(text)
+        return self.line
 
 
 def workspace_figure(lo: Any, hi: Any, longest: float = AXES_INCHES) -> tuple[plt.Figure, plt.Axes]:

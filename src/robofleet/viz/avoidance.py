@@ -42,6 +42,7 @@ from .avoidance_geometry import (
     view_extent,
 )
 from .animation import (
+    FrameTitle,
     fit_canvas,
     frame_indices,
     mark_zero_rates,
@@ -185,7 +186,7 @@ def animation_scene(trace: Trace) -> tuple[plt.Figure, Callable[[int], list]]:
     draw_workspace(ax, trace)
     ax.set(xlabel="x [m]", ylabel="y [m]")
     outside_legend(ax, animation_legend(trace, cells is not None, ellipse is not None, headings is not None, local_box is not None))
-    title = ax.set_title("", fontsize=9)
+    title = FrameTitle(ax, run_title(trace) + (" (top view)" if is_three_d(trace) else ""))
     robots = [RobotArtists.add(ax, goals[i], radius, cells is not None, ellipse, headings is not None) for i in range(pos.shape[1])]
 
     def update(k: int) -> list:
@@ -209,8 +210,7 @@ def animation_scene(trace: Trace) -> tuple[plt.Figure, Callable[[int], list]]:
                 robot.heading.set_visible(bool(np.isfinite(headings[k, i])))
                 if np.isfinite(headings[k, i]):
                     point_heading(robot.heading, pos[k, i], float(headings[k, i]), radius)
-        title.set_text(f"{run_title(trace)}" + (" (top view)" if is_three_d(trace) else "") + f"\nt = {k * dt:.1f} s")
-        return [artist for robot in robots for artist in robot.in_drawing_order()] + [title]
+        return [artist for robot in robots for artist in robot.in_drawing_order()] + [title.show(f"t = {k * dt:.1f} s")]
 
     update(0)
     fit_canvas(fig)

@@ -22,6 +22,7 @@ from matplotlib.patches import Polygon as PolygonPatch
 from ..core.trace import Trace
 from ..core.workspace import Workspace
 from .animation import (
+    FrameTitle,
     fit_canvas,
     frame_indices,
     outside_legend,
@@ -216,7 +217,7 @@ def animate_trace(trace: Trace, path: str | Path, max_frames: int = 150, fps: in
                         zip(("moving", "waiting", "finished", "deadlocked (last frame)"), ("tab:blue", "tab:orange", "tab:green", "tab:red"))
                         if name != "deadlocked (last frame)" or deadlocked] + [proxy("planned path", color="C0", ls=":")] + _map_handles(trace))
     discs = [ax.add_patch(Circle(p, radius, color="tab:blue", zorder=3)) for p in positions[0]]
-    title = ax.set_title("", fontsize=9)
+    title = FrameTitle(ax, run_title(trace))
     frames = frame_indices(len(positions), max_frames)
     last = frames[-1]
 
@@ -232,8 +233,7 @@ def animate_trace(trace: Trace, path: str | Path, max_frames: int = 150, fps: in
                 disc.set_color("tab:orange")
             else:
                 disc.set_color("tab:blue")
-        title.set_text(f"{run_title(trace)}\nt = {t * dt:.1f} s · waiting: {int(waiting[min(t, len(waiting) - 1)].sum())}")
-        return [*discs, title]
+        return [*discs, title.show(f"t = {t * dt:.1f} s · waiting: {int(waiting[min(t, len(waiting) - 1)].sum())}")]
 
     update(frames[0])
     fit_canvas(fig)  # to the map, the legend and the first frame's title

@@ -19,6 +19,7 @@ import pandas as pd
 
 from ..core.trace import Trace
 from .animation import (
+    FrameTitle,
     fit_canvas,
     frame_indices,
     outside_legend,
@@ -128,7 +129,7 @@ def animate_trace(trace: Trace, path: str | Path, fps: int = 15, max_frames: int
     slots = ax.scatter(targets[0, :, 0], targets[0, :, 1], facecolors="none", edgecolors="0.5", s=40)
     followers = ax.scatter(pos[0, 1:, 0], pos[0, 1:, 1], c=[f"C{i % 10}" for i in range(1, pos.shape[1])], s=18)
     leader = ax.plot([], [], markersize=11, color="k", ls="none")[0]
-    title = ax.set_title("", fontsize=9)
+    title = FrameTitle(ax, run_title(trace))
 
     def update(k: int):
         start = max(0, k - tail)
@@ -138,9 +139,9 @@ def animate_trace(trace: Trace, path: str | Path, fps: int = 15, max_frames: int
         followers.set_offsets(pos[k, 1:])
         leader.set_data([pos[k, 0, 0]], [pos[k, 0, 1]])
         leader.set_marker(leader_marker(heading[k]))
-        title.set_text(f"{run_title(trace)}\nt = {times[k]:.0f} time units · Δe = {trace.arrays['delta_e'][k]:.1f} · "
-                       f"Δr = {trace.arrays['delta_r'][k]:.1f}")
-        return [*trails, slots, followers, leader, title]
+        caption = title.show(f"t = {times[k]:.0f} time units · Δe = {trace.arrays['delta_e'][k]:.1f} · "
+                             f"Δr = {trace.arrays['delta_r'][k]:.1f}")
+        return [*trails, slots, followers, leader, caption]
 
     update(frames[0])
     fit_canvas(fig)

@@ -20,6 +20,7 @@ from matplotlib.patches import Polygon as PolygonPatch
 
 from ..core.trace import Trace
 from .animation import (
+    FrameTitle,
     fit_canvas,
     frame_indices,
     outside_legend,
@@ -148,7 +149,7 @@ def animate_trace(trace: Trace, path: str | Path, fps: int = 6, max_frames: int 
     trails = [ax.plot([], [], "-", color=c, linewidth=1.2, alpha=0.7)[0] for c in colors]
     dots = ax.scatter(pos[0, :, 0], pos[0, :, 1], s=60, c=colors, edgecolors="black", zorder=5)
     seen = ax.scatter([], [], s=14, c="tab:green", alpha=0.5, zorder=2)
-    label = ax.set_title("", fontsize=9)
+    title = FrameTitle(ax, run_title(trace))
     visited_sets = _visited_until(trace)
     failed_at = {e["robot"]: e["step"] for e in trace.events if e["kind"] == "failure"}
     dead = ax.scatter([], [], s=120, marker="x", c="black", zorder=6)
@@ -163,8 +164,7 @@ def animate_trace(trace: Trace, path: str | Path, fps: int = 6, max_frames: int 
         down = [r for r, step in failed_at.items() if step <= k]
         dead.set_offsets(pos[k, down] if down else np.empty((0, 2)))
         seen.set_offsets(visited_sets(k))
-        label.set_text(f"{run_title(trace)}\nstep {k}, t = {times[k]:.1f} s")
-        return [*trails, dots, seen, dead, label]
+        return [*trails, dots, seen, dead, title.show(f"step {k}, t = {times[k]:.1f} s")]
 
     frames = frame_indices(len(pos), max_frames)
     update(frames[0])
