@@ -7,8 +7,13 @@ STAMP  := $(VENV)/.installed
 .PHONY: demo check test bench docs clean install
 
 # uv installs from its cache in parallel and compiles nothing: Python byte-compiles a module
-# the first time a process imports it, as on a user's machine, and later processes read the
-# compiled file (the test suite imports about a tenth of the environment's modules)
+# the first time a process imports it and later processes read the compiled file (the test
+# suite imports a small part of the environment's 10,000 modules). Every recipe lets Python
+# write that bytecode into the environment and the sources, also where the caller's
+# environment forbids it (PYTHONDONTWRITEBYTECODE=1, common in containers and CI), in which
+# case every process the tests start would compile numpy, scipy, numba and robofleet again.
+unexport PYTHONDONTWRITEBYTECODE
+
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --disable-pip-version-check uv
