@@ -160,6 +160,9 @@ def random_rows(rnd: range, liveness: str, budget_factor: float, generator: str 
     unplaced = [s for s, row in zip(rnd, rows) if row is None]
     if unplaced:
         print(f"{generator}: no layout for seeds {unplaced} (left out)", flush=True)
+    not_home = [s for s, row in zip(rnd, rows) if row is not None and not row["success"]]
+    if not_home:
+        print(f"{generator}: not every robot home at the end of seeds {not_home}", flush=True)
     return [row for row in rows if row is not None]
 
 
