@@ -18,7 +18,8 @@ and the mean travel time of the runs both finish, paired by seed.
 Run: ``python benchmarks/avoidance_liveness.py [--seeds 20] [--random 20] [--first-seed 0] [--random-first-seeds 1000 3000] [--scenarios ten_boxes ...] [--liveness off] [--budget-factor 4] [--before-after] [--generator polygons|boxes|room] [--jobs 2]``
 (``--scenarios`` with no name runs only the random scenarios; ``--generator boxes|room``
 draws them from another generator of :mod:`robofleet.avoidance.random_scenarios` (a seed
-whose layout cannot be placed is left out and named); every run is seeded, so any seed
+whose layout cannot be placed is left out and named, and so are the seeds that end with a
+robot away from home); every run is seeded, so any seed
 range can be re-run and ``--jobs`` does not change a figure).
 """
 
